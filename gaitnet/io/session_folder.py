@@ -1,0 +1,228 @@
+"""Session folder v1 (docs/session-format.md): lazy reader and atomic writer.
+
+```
+session.yaml      calibration (see gaitnet.io.session_yaml)
+color/<t_ns>.png  8-bit RGB
+depth/<t_ns>.png  16-bit depth aligned to colour, 0 = invalid
+imu.csv           t_ns,ax,ay,az,gx,gy,gz
+groundtruth/      optional (simulator)
+```
+
+Opening a folder validates everything that is cheap to check (session.yaml, the IMU stream,
+that every colour frame has its depth frame, each PNG's size, type and completeness from its
+header); pixels are decoded only when a frame is requested.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import shutil
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from gaitnet.errors import SessionError
+from gaitnet.io.atomic import atomic_write_text
+from gaitnet.io.images import (
+    check_png,
+    depth_to_units,
+    encode_png,
+    read_depth,
+    read_rgb,
+)
+from gaitnet.io.imu_csv import imu_csv_text, read_imu_csv, validate_imu
+from gaitnet.io.session_yaml import read_session_yaml, session_yaml_text
+from gaitnet.io.types import Frame, ImuSamples, SessionCalibration
+
+log = logging.getLogger(__name__)
+
+
+def _frame_files(folder: Path) -> dict[int, Path]:
+    if not folder.is_dir():
+        raise SessionError(f"{folder}: missing folder")
+    files: dict[int, Path] = {}
+    for path in folder.iterdir():
+        if path.name.startswith("."):
+            continue
+        if path.suffix.lower() != ".png":
+            raise SessionError(f"{path}: unexpected file (frames are <t_ns>.png)")
+        try:
+            t_ns = int(path.stem)
+        except ValueError as exc:
+            raise SessionError(f"{path}: file name is not a timestamp in ns") from exc
+        if t_ns in files:
+            raise SessionError(f"{path}: duplicate timestamp (also {files[t_ns].name})")
+        files[t_ns] = path
+    return files
+
+
+class SessionFolder:
+    """Read a session folder lazily (implements :class:`gaitnet.io.types.SessionSource`)."""
+
+    def __init__(
+        self,
+        root: str | Path,
+        imu_gap_warn_s: float = 0.025,
+        imu_gap_error_s: float = 1.0,
+        check_headers: bool = True,
+    ) -> None:
+        self.root = Path(root)
+        if not self.root.is_dir():
+            raise SessionError(f"{self.root}: session folder not found")
+        self._calib = read_session_yaml(self.root / "session.yaml")
+        color = _frame_files(self.root / "color")
+        depth = _frame_files(self.root / "depth")
+        if not color:
+            raise SessionError(f"{self.root / 'color'}: no frames")
+        for t_ns, path in color.items():
+            if t_ns not in depth:
+                raise SessionError(f"{path}: no depth frame with the same timestamp")
+        for t_ns, path in depth.items():
+            if t_ns not in color:
+                raise SessionError(f"{path}: no colour frame with the same timestamp")
+        self._times = np.array(sorted(color), dtype=np.int64)
+        self._color = [color[t] for t in self._times]
+        self._depth = [depth[t] for t in self._times]
+        if check_headers:
+            c, d = self._calib.color, self._calib.depth
+            for path in self._color:
+                check_png(path, c.width, c.height, bit_depth=8, channels=3)
+            for path in self._depth:
+                check_png(path, d.width, d.height, bit_depth=16, channels=1)
+        self._imu = read_imu_csv(self.root / "imu.csv", imu_gap_warn_s, imu_gap_error_s)
+        if self._imu.t_ns[0] > self._times[0] or self._imu.t_ns[-1] < self._times[-1]:
+            log.warning(
+                "%s: IMU covers %.3f–%.3f s but frames span %.3f–%.3f s",
+                self.root,
+                self._imu.t_ns[0] * 1e-9,
+                self._imu.t_ns[-1] * 1e-9,
+                self._times[0] * 1e-9,
+                self._times[-1] * 1e-9,
+            )
+
+    @property
+    def calibration(self) -> SessionCalibration:
+        return self._calib
+
+    @property
+    def frame_times_ns(self) -> np.ndarray:
+        return self._times
+
+    @property
+    def imu(self) -> ImuSamples:
+        return self._imu
+
+    @property
+    def groundtruth_dir(self) -> Path | None:
+        path = self.root / "groundtruth"
+        return path if path.is_dir() else None
+
+    def __len__(self) -> int:
+        return len(self._times)
+
+    def frame(self, index: int) -> Frame:
+        if not -len(self) <= index < len(self):
+            raise IndexError(f"frame {index} out of range (session has {len(self)})")
+        index %= len(self)
+        c, d = self._calib.color, self._calib.depth
+        rgb = read_rgb(self._color[index], c.width, c.height)
+        depth = read_depth(self._depth[index], d.width, d.height, self._calib.depth_scale_m)
+        return Frame(index=index, t_ns=int(self._times[index]), rgb=rgb, depth_m=depth)
+
+    def frames(self) -> Iterator[Frame]:
+        for i in range(len(self)):
+            yield self.frame(i)
+
+
+class SessionWriter:
+    """Write a session folder; it appears at ``root`` only when :meth:`close` succeeds.
+
+    Frames go to a staging folder next to ``root``; on success the staging folder is renamed
+    to ``root`` (atomic on one filesystem), so an interrupted write never leaves a folder that
+    looks like a complete session. Use as a context manager::
+
+        with SessionWriter(out, calib) as writer:
+            writer.add_frame(t_ns, rgb, depth_m)
+            writer.set_imu(imu)
+            (writer.staging / "groundtruth").mkdir()   # extra content, optional
+    """
+
+    def __init__(self, root: str | Path, calibration: SessionCalibration, overwrite: bool = False):
+        self.root = Path(root)
+        self.calibration = calibration
+        occupied = self.root.exists() and (not self.root.is_dir() or any(self.root.iterdir()))
+        if occupied and not overwrite:
+            raise SessionError(
+                f"{self.root}: output exists and is not empty "
+                "(choose another folder or overwrite it)"
+            )
+        self.overwrite = overwrite
+        self.staging = self.root.parent / f".{self.root.name}.partial-{os.getpid()}"
+        if self.staging.exists():
+            shutil.rmtree(self.staging)
+        (self.staging / "color").mkdir(parents=True)
+        (self.staging / "depth").mkdir()
+        self._times: list[int] = []
+        self._imu: ImuSamples | None = None
+
+    def add_frame(self, t_ns: int, rgb: np.ndarray, depth_m: np.ndarray) -> None:
+        c, d = self.calibration.color, self.calibration.depth
+        if rgb.shape != (c.height, c.width, 3) or rgb.dtype != np.uint8:
+            raise ValueError(
+                f"rgb must be uint8 {(c.height, c.width, 3)}, got {rgb.dtype} {rgb.shape}"
+            )
+        if depth_m.shape != (d.height, d.width):
+            raise ValueError(f"depth must be {(d.height, d.width)}, got {depth_m.shape}")
+        if self._times and t_ns <= self._times[-1]:
+            raise ValueError(f"frame timestamps must increase ({t_ns} after {self._times[-1]})")
+        name = f"{int(t_ns)}.png"
+        (self.staging / "color" / name).write_bytes(encode_png(rgb))
+        units = depth_to_units(depth_m, self.calibration.depth_scale_m)
+        (self.staging / "depth" / name).write_bytes(encode_png(units))
+        self._times.append(int(t_ns))
+
+    def set_imu(self, imu: ImuSamples) -> None:
+        validate_imu(imu, "IMU stream being written")
+        self._imu = imu
+
+    def close(self) -> Path:
+        if self._imu is None:
+            raise ValueError("set_imu() was not called")
+        if not self._times:
+            raise ValueError("no frames were added")
+        atomic_write_text(self.staging / "session.yaml", session_yaml_text(self.calibration))
+        atomic_write_text(self.staging / "imu.csv", imu_csv_text(self._imu))
+        if self.root.exists():
+            shutil.rmtree(self.root)
+        os.replace(self.staging, self.root)
+        return self.root
+
+    def abort(self) -> None:
+        shutil.rmtree(self.staging, ignore_errors=True)
+
+    def __enter__(self) -> SessionWriter:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+
+def copy_session(source, out_dir: str | Path, overwrite: bool = False, progress=None) -> Path:
+    """Write any :class:`~gaitnet.io.types.SessionSource` as a session folder.
+
+    ``progress`` optionally wraps the frame iterator (e.g. ``tqdm``) for the CLI.
+    """
+    writer = SessionWriter(out_dir, source.calibration, overwrite=overwrite)
+    frames = source.frames()
+    if progress is not None:
+        frames = progress(frames, total=len(source))
+    with writer:
+        for frame in frames:
+            writer.add_frame(frame.t_ns, frame.rgb, frame.depth_m)
+        writer.set_imu(source.imu)
+    return Path(out_dir)

@@ -1,0 +1,76 @@
+"""Smoke tests of the ``gaitnet`` command through a real subprocess."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import gaitnet
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "gaitnet.cli", *args], capture_output=True, text=True, timeout=300
+    )
+
+
+def test_help_lists_commands() -> None:
+    result = run("--help")
+    assert result.returncode == 0
+    for command in ["check", "convert"]:
+        assert command in result.stdout
+
+
+def test_version() -> None:
+    result = run("--version")
+    assert result.returncode == 0 and gaitnet.__version__ in result.stdout
+
+
+def test_check_reports_a_good_session(tiny_session: Path) -> None:
+    result = run("check", str(tiny_session), "--decode")
+    assert result.returncode == 0, result.stderr
+    assert "frames    4" in result.stdout and "ok: every frame decoded" in result.stdout
+
+
+def _one_line_error(result: subprocess.CompletedProcess) -> str:
+    assert result.returncode == 1
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    return lines[0]
+
+
+def test_check_truncated_png_one_line(tiny_session: Path) -> None:
+    path = sorted((tiny_session / "color").iterdir())[0]
+    path.write_bytes(path.read_bytes()[:100])
+    line = _one_line_error(run("check", str(tiny_session)))
+    assert str(path) in line and "truncated PNG" in line
+
+
+def test_check_wrong_depth_size_one_line(tiny_session: Path) -> None:
+    import numpy as np
+
+    from gaitnet.io.images import encode_png
+
+    path = sorted((tiny_session / "depth").iterdir())[1]
+    path.write_bytes(encode_png(np.zeros((10, 10), np.uint16)))
+    line = _one_line_error(run("check", str(tiny_session)))
+    assert str(path) in line and "expected 32×24" in line
+
+
+def test_check_unsorted_imu_one_line(tiny_session: Path) -> None:
+    path = tiny_session / "imu.csv"
+    lines = path.read_text().splitlines()
+    lines[2], lines[3] = lines[3], lines[2]
+    path.write_text("\n".join(lines) + "\n")
+    line = _one_line_error(run("check", str(tiny_session)))
+    assert str(path) in line and "unsorted timestamps" in line
+
+
+def test_convert_folder_to_folder(tiny_session: Path, tmp_path: Path) -> None:
+    out = tmp_path / "converted"
+    result = run("convert", str(tiny_session), str(out))
+    assert result.returncode == 0, result.stderr
+    assert (out / "imu.csv").read_bytes() == (tiny_session / "imu.csv").read_bytes()
+    again = run("convert", str(tiny_session), str(out))
+    assert "output exists and is not empty" in _one_line_error(again)

@@ -1,0 +1,111 @@
+"""Typed YAML configs: validation, base inheritance, overrides, resolved-config round trip."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import pytest
+
+from gaitnet.config import dump_config, load_config, save_config
+from gaitnet.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class Optim:
+    lr: float = 5e-4
+    gamma: float = 0.96
+    kind: Literal["adam", "sgd"] = "adam"
+
+
+@dataclass(frozen=True)
+class Example:
+    name: str
+    epochs: int = 50
+    optim: Optim = field(default_factory=Optim)
+    sizes: tuple[int, ...] = (1, 2)
+    pair: tuple[float, float] = (0.0, 1.0)
+    note: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.epochs < 1:
+            raise ValueError("epochs must be at least 1")
+
+
+def write(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+def test_defaults_and_values(tmp_path: Path) -> None:
+    cfg = load_config(Example, write(tmp_path / "a.yaml", "name: x\noptim: {lr: 1}\n"))
+    assert cfg == Example(name="x", optim=Optim(lr=1.0))
+    assert isinstance(cfg.optim.lr, float)
+
+
+def test_unknown_key_names_key_and_file(tmp_path: Path) -> None:
+    path = write(tmp_path / "bad.yaml", "name: x\noptim: {lrr: 1}\n")
+    with pytest.raises(ConfigError, match=r"bad.yaml: unknown key 'optim.lrr'"):
+        load_config(Example, path)
+
+
+def test_wrong_type_names_key_and_file(tmp_path: Path) -> None:
+    path = write(tmp_path / "bad.yaml", "name: x\nepochs: ten\n")
+    with pytest.raises(ConfigError, match=r"bad.yaml: key 'epochs' expects int, got 'ten'"):
+        load_config(Example, path)
+    path = write(tmp_path / "bad2.yaml", "name: x\nepochs: 2.5\n")
+    with pytest.raises(ConfigError, match="key 'epochs' expects int"):
+        load_config(Example, path)
+    path = write(tmp_path / "bad3.yaml", "name: x\nsizes: [1, b]\n")
+    with pytest.raises(ConfigError, match=r"key 'sizes\[1\]' expects int"):
+        load_config(Example, path)
+    path = write(tmp_path / "bad4.yaml", "name: x\noptim: {kind: rmsprop}\n")
+    with pytest.raises(ConfigError, match="'optim.kind' must be one of 'adam', 'sgd'"):
+        load_config(Example, path)
+    path = write(tmp_path / "bad5.yaml", "name: x\npair: [1, 2, 3]\n")
+    with pytest.raises(ConfigError, match="'pair' expects 2 values, got 3"):
+        load_config(Example, path)
+
+
+def test_missing_required_and_range_check(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="missing required key 'name'"):
+        load_config(Example, write(tmp_path / "a.yaml", "epochs: 3\n"))
+    with pytest.raises(ConfigError, match="epochs must be at least 1"):
+        load_config(Example, write(tmp_path / "b.yaml", "name: x\nepochs: 0\n"))
+
+
+def test_overrides(tmp_path: Path) -> None:
+    path = write(tmp_path / "a.yaml", "name: x\n")
+    cfg = load_config(Example, path, ["optim.lr=0.1", "sizes=[3, 4]", "note=hello", "epochs=7"])
+    assert cfg.optim.lr == 0.1 and cfg.sizes == (3, 4) and cfg.note == "hello"
+    assert cfg.epochs == 7
+    with pytest.raises(ConfigError, match="unknown key 'optim.beta'"):
+        load_config(Example, path, ["optim.beta=1"])
+    with pytest.raises(ConfigError, match="expected key=value"):
+        load_config(Example, path, ["epochs"])
+
+
+def test_one_level_base(tmp_path: Path) -> None:
+    write(tmp_path / "base.yaml", "name: base\nepochs: 10\noptim: {lr: 0.5, kind: sgd}\n")
+    child = write(tmp_path / "child.yaml", "_base_: base.yaml\noptim: {lr: 0.25}\n")
+    cfg = load_config(Example, child)
+    assert cfg == Example(name="base", epochs=10, optim=Optim(lr=0.25, kind="sgd"))
+    write(tmp_path / "b2.yaml", "_base_: base.yaml\nname: y\n")
+    grandchild = write(tmp_path / "c.yaml", "_base_: b2.yaml\n")
+    with pytest.raises(ConfigError, match="may not have its own '_base_'"):
+        load_config(Example, grandchild)
+
+
+def test_resolved_config_round_trip(tmp_path: Path) -> None:
+    cfg = Example(name="r", epochs=3, sizes=(5,), note=None)
+    path = save_config(cfg, tmp_path / "run" / "config.yaml")
+    assert load_config(Example, path) == cfg
+    assert "optim:" in dump_config(cfg)
+
+
+def test_invalid_yaml_and_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="not valid YAML"):
+        load_config(Example, write(tmp_path / "a.yaml", "name: [x\n"))
+    with pytest.raises(ConfigError, match="config file not found"):
+        load_config(Example, tmp_path / "none.yaml")

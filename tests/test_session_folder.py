@@ -1,0 +1,188 @@
+"""Session folder v1: round trips through the writer/reader and clear errors on broken input."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from sessionfactory import HEIGHT, WIDTH, make_tiny_session, tiny_calibration, tiny_frames, tiny_imu
+
+from gaitnet.errors import SessionError
+from gaitnet.io import SessionFolder, SessionWriter, copy_session, open_session
+
+
+def test_round_trip_is_exact(tiny_session: Path) -> None:
+    session = SessionFolder(tiny_session)
+    expected = tiny_frames()
+    assert len(session) == len(expected)
+    np.testing.assert_array_equal(session.frame_times_ns, [t for t, _, _ in expected])
+    for frame, (t_ns, rgb, depth) in zip(session.frames(), expected, strict=True):
+        assert frame.t_ns == t_ns
+        np.testing.assert_array_equal(frame.rgb, rgb)
+        assert frame.depth_m.dtype == np.float32
+        np.testing.assert_allclose(frame.depth_m, depth, atol=1e-6)
+        assert (frame.depth_m[0] == 0).all()
+    imu = tiny_imu()
+    np.testing.assert_array_equal(session.imu.t_ns, imu.t_ns)
+    np.testing.assert_allclose(session.imu.accel, imu.accel, rtol=1e-8)
+    np.testing.assert_allclose(session.imu.gyro, imu.gyro, rtol=1e-8, atol=1e-12)
+    calib, ref = session.calibration, tiny_calibration()
+    assert calib.color == ref.color and calib.imu_noise == ref.imu_noise
+    np.testing.assert_allclose(calib.T_CfromI, ref.T_CfromI)
+    board = calib.apriltag_boards[0]
+    assert board.tag_centre_in_board(7) == pytest.approx([0.124, 0.072, 0.0])
+
+
+def test_frames_load_lazily(tiny_session: Path) -> None:
+    session = open_session(tiny_session)
+    (tiny_session / "color" / f"{session.frame_times_ns[2]}.png").write_bytes(
+        (tiny_session / "color" / f"{session.frame_times_ns[1]}.png").read_bytes()
+    )
+    # The swapped file is only read when frame 2 is requested.
+    np.testing.assert_array_equal(session.frame(2).rgb, session.frame(1).rgb)
+    assert session.frame(-1).index == len(session) - 1
+    with pytest.raises(IndexError):
+        session.frame(len(session))
+
+
+def test_same_content_gives_identical_bytes(tmp_path: Path) -> None:
+    a = make_tiny_session(tmp_path / "a")
+    b = make_tiny_session(tmp_path / "b")
+    files = sorted(p.relative_to(a) for p in a.rglob("*") if p.is_file())
+    assert files == sorted(p.relative_to(b) for p in b.rglob("*") if p.is_file())
+    for rel in files:
+        assert (a / rel).read_bytes() == (b / rel).read_bytes(), rel
+
+
+def test_copy_session_round_trip(tiny_session: Path, tmp_path: Path) -> None:
+    out = copy_session(SessionFolder(tiny_session), tmp_path / "copy")
+    for name in ["session.yaml", "imu.csv"]:
+        assert (out / name).read_bytes() == (tiny_session / name).read_bytes()
+
+
+def test_truncated_png_is_named(tiny_session: Path) -> None:
+    path = sorted((tiny_session / "color").iterdir())[1]
+    path.write_bytes(path.read_bytes()[:-40])
+    with pytest.raises(SessionError, match=rf"{path.name}: truncated PNG"):
+        SessionFolder(tiny_session)
+
+
+def test_corrupt_png_fails_on_decode_when_headers_unchecked(tiny_session: Path) -> None:
+    path = sorted((tiny_session / "depth").iterdir())[0]
+    data = bytearray(path.read_bytes())
+    data[60:80] = b"\x00" * 20
+    path.write_bytes(bytes(data))
+    session = SessionFolder(tiny_session, check_headers=False)
+    with pytest.raises(SessionError, match=rf"{path.name}: cannot decode depth"):
+        session.frame(0)
+
+
+def test_depth_of_wrong_size_is_named(tiny_session: Path) -> None:
+    from gaitnet.io.images import encode_png
+
+    path = sorted((tiny_session / "depth").iterdir())[2]
+    path.write_bytes(encode_png(np.ones((HEIGHT, WIDTH + 1), np.uint16)))
+    with pytest.raises(SessionError, match=rf"{path.name}: image is 33×24, expected 32×24"):
+        SessionFolder(tiny_session)
+
+
+def test_colour_saved_as_depth_type_is_named(tiny_session: Path) -> None:
+    from gaitnet.io.images import encode_png
+
+    path = sorted((tiny_session / "depth").iterdir())[0]
+    path.write_bytes(encode_png(np.zeros((HEIGHT, WIDTH, 3), np.uint8)))
+    with pytest.raises(SessionError, match="3-channel 8-bit PNG, expected 1-channel 16-bit"):
+        SessionFolder(tiny_session)
+
+
+def test_missing_depth_frame_is_named(tiny_session: Path) -> None:
+    path = sorted((tiny_session / "depth").iterdir())[3]
+    path.unlink()
+    with pytest.raises(SessionError, match="no depth frame with the same timestamp"):
+        SessionFolder(tiny_session)
+
+
+def _rewrite_imu(root: Path, edit) -> Path:
+    path = root / "imu.csv"
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join(edit(lines)) + "\n")
+    return path
+
+
+def test_unsorted_imu_is_named(tiny_session: Path) -> None:
+    def swap(lines):
+        lines[5], lines[6] = lines[6], lines[5]
+        return lines
+
+    path = _rewrite_imu(tiny_session, swap)
+    with pytest.raises(SessionError, match=rf"{path.name}: unsorted timestamps at line 7"):
+        SessionFolder(tiny_session)
+
+
+def test_duplicate_imu_timestamp_is_named(tiny_session: Path) -> None:
+    _rewrite_imu(tiny_session, lambda lines: lines[:4] + [lines[3]] + lines[4:])
+    with pytest.raises(SessionError, match="duplicate timestamps at line 5"):
+        SessionFolder(tiny_session)
+
+
+def test_imu_gap_warns_then_errors(tiny_session: Path, caplog) -> None:
+    _rewrite_imu(tiny_session, lambda lines: lines[:10] + lines[20:])
+    with caplog.at_level(logging.WARNING):
+        SessionFolder(tiny_session)
+    assert "1 IMU gap(s) longer than 0.025 s, the longest 0.055 s" in caplog.text
+    with pytest.raises(SessionError, match="IMU gap of 0.055 s"):
+        SessionFolder(tiny_session, imu_gap_error_s=0.05)
+
+
+def test_nan_in_imu_is_named(tiny_session: Path) -> None:
+    def poison(lines):
+        parts = lines[7].split(",")
+        parts[3] = "nan"
+        lines[7] = ",".join(parts)
+        return lines
+
+    _rewrite_imu(tiny_session, poison)
+    with pytest.raises(SessionError, match="non-finite IMU value at line 8"):
+        SessionFolder(tiny_session)
+
+
+def test_bad_session_yaml_key_is_named(tiny_session: Path) -> None:
+    path = tiny_session / "session.yaml"
+    data = yaml.safe_load(path.read_text())
+    data["color"]["fxx"] = 1.0
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(SessionError, match=r"session.yaml: unknown key 'color.fxx'"):
+        SessionFolder(tiny_session)
+
+
+def test_non_rigid_extrinsic_is_rejected(tiny_session: Path) -> None:
+    path = tiny_session / "session.yaml"
+    data = yaml.safe_load(path.read_text())
+    data["T_CfromI"][0][0] = 2.0
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(SessionError, match="'T_CfromI' is not a rigid transform"):
+        SessionFolder(tiny_session)
+
+
+def test_writer_is_atomic_and_refuses_to_clobber(tmp_path: Path) -> None:
+    root = tmp_path / "out"
+    with pytest.raises(RuntimeError), SessionWriter(root, tiny_calibration()) as writer:
+        t_ns, rgb, depth = tiny_frames(1)[0]
+        writer.add_frame(t_ns, rgb, depth)
+        raise RuntimeError("interrupted")
+    assert not root.exists()
+    assert list(tmp_path.iterdir()) == []
+    make_tiny_session(root)
+    with pytest.raises(SessionError, match="output exists and is not empty"):
+        make_tiny_session(root)
+
+
+def test_open_session_rejects_unknown_path(tmp_path: Path) -> None:
+    with pytest.raises(SessionError, match="no such session folder"):
+        open_session(tmp_path / "nothing")
+    (tmp_path / "x.txt").write_text("hi")
+    with pytest.raises(SessionError, match="not a session folder or a .bag"):
+        open_session(tmp_path / "x.txt")
