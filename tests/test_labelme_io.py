@@ -1,0 +1,80 @@
+"""labelme JSON: masks → polygons → labelme's own rasteriser gives the masks back."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from gaitnet.errors import SessionError
+from gaitnet.io.labelme_io import labelme_document, labels_txt, read_labelme, read_labels_txt
+
+
+def synthetic_masks() -> tuple[np.ndarray, np.ndarray]:
+    labels = np.zeros((120, 160), np.uint8)
+    instances = np.zeros_like(labels)
+    for side, cx in ((1, 50), (2, 110)):
+        leg = np.zeros_like(labels)
+        cv2.ellipse(leg, (cx, 40), (12, 45), 5, 0, 360, 1, -1)
+        foot = np.zeros_like(labels)
+        cv2.ellipse(foot, (cx + 3, 90), (14, 24), -8, 0, 360, 1, -1)
+        labels[leg > 0] = 2
+        labels[foot > 0] = 1
+        instances[(leg > 0) | (foot > 0)] = side
+    return labels, instances
+
+
+def iou(a: np.ndarray, b: np.ndarray) -> float:
+    return float((a & b).sum() / max(1, (a | b).sum()))
+
+
+def test_round_trip_through_labelme(tmp_path: Path) -> None:
+    labels, instances = synthetic_masks()
+    cv2.imwrite(str(tmp_path / "f.png"), np.zeros((120, 160, 3), np.uint8))
+    doc = labelme_document(labels, instances, "f.png")
+    assert {s["label"] for s in doc["shapes"]} == {"foot", "leg"}
+    (tmp_path / "f.json").write_text(json.dumps(doc))
+    cls, ins, image = read_labelme(tmp_path / "f.json")
+    assert image == (tmp_path / "f.png").resolve()
+    for value in (1, 2):
+        assert iou(cls == value, labels == value) > 0.93
+    for side in (1, 2):
+        inst_values = np.unique(ins[(instances == side) & (labels == 1)])
+        assert len(inst_values) == 1 and inst_values[0] > 0
+
+
+def test_image_path_may_not_escape(tmp_path: Path) -> None:
+    labels, instances = synthetic_masks()
+    doc = labelme_document(labels, instances, "../../etc/passwd")
+    (tmp_path / "x.json").write_text(json.dumps(doc))
+    with pytest.raises(SessionError, match="escapes the annotation folder"):
+        read_labelme(tmp_path / "x.json")
+
+
+def test_unknown_label_and_missing_key(tmp_path: Path) -> None:
+    labels, instances = synthetic_masks()
+    doc = labelme_document(labels, instances, "f.png")
+    doc["shapes"][0]["label"] = "hand"
+    (tmp_path / "a.json").write_text(json.dumps(doc))
+    with pytest.raises(SessionError, match="a.json: unknown label 'hand'"):
+        read_labelme(tmp_path / "a.json")
+    del doc["imageHeight"]
+    (tmp_path / "b.json").write_text(json.dumps(doc))
+    with pytest.raises(SessionError, match="b.json: missing key 'imageHeight'"):
+        read_labelme(tmp_path / "b.json")
+
+
+def test_labels_txt(tmp_path: Path) -> None:
+    (tmp_path / "labels.txt").write_text(labels_txt())
+    assert read_labels_txt(tmp_path / "labels.txt") == {
+        "__ignore__": 255,
+        "_background_": 0,
+        "foot": 1,
+        "leg": 2,
+    }
+    (tmp_path / "bad.txt").write_text("foot\nleg\n")
+    with pytest.raises(SessionError, match="must start with"):
+        read_labels_txt(tmp_path / "bad.txt")
