@@ -202,7 +202,7 @@ def _convert(tp: Any, value: Any, source: str, key: str) -> Any:
             item_tp = args[0] if args else Any
             items = [_convert(item_tp, v, source, f"{key}[{i}]") for i, v in enumerate(value)]
         return tuple(items) if origin is tuple else items
-    if origin is dict:
+    if origin is dict or tp is dict:
         if not isinstance(value, dict):
             raise fail()
         return dict(value)

@@ -74,3 +74,21 @@ def test_convert_folder_to_folder(tiny_session: Path, tmp_path: Path) -> None:
     assert (out / "imu.csv").read_bytes() == (tiny_session / "imu.csv").read_bytes()
     again = run("convert", str(tiny_session), str(out))
     assert "output exists and is not empty" in _one_line_error(again)
+
+
+def test_convert_bag_to_folder(tmp_path: Path) -> None:
+    from bagfactory import write_sdk_bag
+
+    spec = write_sdk_bag(tmp_path / "walk.bag", n_frames=4)
+    out = tmp_path / "walk"
+    result = run("convert", str(spec.path), str(out))
+    assert result.returncode == 0, result.stderr
+    checked = run("check", str(out), "--decode")
+    assert checked.returncode == 0 and "frames    4" in checked.stdout
+
+
+def test_check_garbage_bag_one_line(tmp_path: Path) -> None:
+    path = tmp_path / "broken.bag"
+    path.write_bytes(b"#ROSBAG V2.0\n" + b"\x00" * 50)
+    line = _one_line_error(run("check", str(path)))
+    assert str(path) in line
