@@ -23,7 +23,6 @@ from typing import Any, TypeVar
 import yaml
 
 from gaitnet.errors import ConfigError
-from gaitnet.io.atomic import atomic_write_text
 
 T = TypeVar("T")
 
@@ -64,6 +63,8 @@ def dump_config(cfg: Any) -> str:
 
 def save_config(cfg: Any, path: str | Path) -> Path:
     """Write the resolved config as YAML (atomically) and return the path."""
+    from gaitnet.io.atomic import atomic_write_text  # io imports config: import here
+
     path = Path(path)
     atomic_write_text(path, dump_config(cfg))
     return path

@@ -47,10 +47,10 @@ class MountConfig:
     IMU-to-camera rotation (roll, pitch, yaw about the camera x, y, z axes).
     """
 
-    pitch_deg: float = 55.0
+    pitch_deg: float = 70.0
     yaw_deg: float = 0.0
     roll_deg: float = 0.0
-    offset_m: tuple[float, float, float] = (0.14, 0.0, 0.05)
+    offset_m: tuple[float, float, float] = (0.17, 0.0, 0.05)
     imu_in_camera_m: tuple[float, float, float] = (-0.0302, 0.0074, 0.0160)
     imu_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
 

@@ -1,0 +1,205 @@
+"""ONNX export of the DCT-GCN predictor with a parity check, and an onnxruntime wrapper.
+
+The exported graph is :meth:`gaitnet.motion.gcn.DCTGCN.forward`: input ``past_poses`` (batch,
+n_past, 21) float32 → output ``poses`` (batch, n_past + n_future, 21) float32, with a dynamic
+batch dimension. The export is refused (and nothing is written) unless onnxruntime reproduces
+PyTorch to within ``atol`` on random inputs of several batch sizes.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import io
+import os
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import onnxruntime as ort
+import torch
+
+from gaitnet.errors import GaitnetError
+from gaitnet.motion.gcn import DCTGCN
+
+__all__ = [
+    "INPUT_NAME",
+    "OUTPUT_NAME",
+    "ExportReport",
+    "OnnxInputError",
+    "OnnxParityError",
+    "OnnxPredictor",
+    "export_predictor_onnx",
+]
+
+INPUT_NAME = "past_poses"
+OUTPUT_NAME = "poses"
+
+
+class OnnxInputError(GaitnetError):
+    """An input does not match what the ONNX model expects; names the model file and shapes."""
+
+
+class OnnxParityError(RuntimeError):
+    """The exported graph does not reproduce the PyTorch model within tolerance."""
+
+
+@dataclass(frozen=True)
+class ExportReport:
+    """Result of :func:`export_predictor_onnx`: the file and the parity check it passed."""
+
+    path: Path
+    opset: int
+    max_abs_diff: float
+    batch_sizes: tuple[int, ...]
+
+
+def _session(path: Path, threads: int) -> ort.InferenceSession:
+    options = ort.SessionOptions()
+    options.intra_op_num_threads = int(threads)
+    options.inter_op_num_threads = 1
+    return ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
+
+
+def export_predictor_onnx(
+    model: DCTGCN,
+    path: str | Path,
+    opset: int = 18,
+    *,
+    atol: float = 1e-4,
+    batch_sizes: Sequence[int] = (1, 2, 5),
+    seed: int = 0,
+) -> ExportReport:
+    """Export ``model`` to ``path`` (one self-contained ``.onnx`` file) and check parity.
+
+    A CPU copy of the model in eval mode is exported (the caller's model is not touched) with
+    ``torch.onnx.export`` (dynamo exporter), a dynamic batch axis, input ``past_poses`` and
+    output ``poses``. The graph is then run with onnxruntime (CPU) on seeded random inputs of
+    each size in ``batch_sizes`` and compared with PyTorch; if the largest absolute difference
+    exceeds ``atol`` :class:`OnnxParityError` is raised and ``path`` is left as it was. On
+    success the file is renamed into place atomically.
+    """
+    path = Path(path)
+    cfg = model.config
+    net = copy.deepcopy(model).to("cpu", torch.float32).eval()
+    example = torch.zeros(2, cfg.n_past, cfg.n_nodes)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".onnx", dir=path.parent)
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        # The exporter reports progress on stdout; library code stays quiet.
+        with contextlib.redirect_stdout(io.StringIO()):
+            torch.onnx.export(
+                net,
+                (example,),
+                str(tmp),
+                input_names=[INPUT_NAME],
+                output_names=[OUTPUT_NAME],
+                opset_version=int(opset),
+                dynamo=True,
+                external_data=False,
+                dynamic_shapes=({0: torch.export.Dim("batch")},),
+                verbose=False,
+            )
+        session = _session(tmp, threads=1)
+        gen = torch.Generator().manual_seed(seed)
+        worst = 0.0
+        for b in batch_sizes:
+            x = torch.randn(int(b), cfg.n_past, cfg.n_nodes, generator=gen)
+            with torch.no_grad():
+                expected = net(x).numpy()
+            (got,) = session.run([OUTPUT_NAME], {INPUT_NAME: x.numpy()})
+            if got.shape != expected.shape:
+                raise OnnxParityError(
+                    f"ONNX export {path}: output shape {got.shape} for batch {b}, "
+                    f"PyTorch gives {expected.shape}"
+                )
+            worst = max(worst, float(np.max(np.abs(got - expected))))
+        if not worst <= atol:
+            raise OnnxParityError(
+                f"ONNX export {path}: max |onnxruntime - torch| = {worst:.3g} exceeds {atol:g}"
+            )
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        raise
+    return ExportReport(
+        path=path, opset=int(opset), max_abs_diff=worst, batch_sizes=tuple(batch_sizes)
+    )
+
+
+class OnnxPredictor:
+    """Run an exported predictor with onnxruntime on the CPU.
+
+    Input and output names and the expected input shape are read from the session. Calls
+    check the input (a clear :class:`OnnxInputError` naming the model file and the expected vs.
+    given shape or dtype), and feed a C-contiguous float32 copy. ``threads`` sets
+    ``intra_op_num_threads``.
+    """
+
+    def __init__(self, path: str | Path, threads: int = 1):
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise FileNotFoundError(f"ONNX model {self.path} does not exist")
+        self.session = _session(self.path, threads)
+        inputs = self.session.get_inputs()
+        if len(inputs) != 1:
+            names = [i.name for i in inputs]
+            raise OnnxInputError(f"ONNX model {self.path}: expected one input, found {names}")
+        self.input_name: str = inputs[0].name
+        self.input_shape: tuple[int | str | None, ...] = tuple(inputs[0].shape)
+        self.input_type: str = inputs[0].type
+        self.output_names: list[str] = [o.name for o in self.session.get_outputs()]
+        if self.input_type != "tensor(float)":
+            raise OnnxInputError(
+                f"ONNX model {self.path}: input {self.input_name!r} has type {self.input_type}, "
+                "expected tensor(float)"
+            )
+        if len(self.input_shape) != 3:
+            raise OnnxInputError(
+                f"ONNX model {self.path}: input {self.input_name!r} has shape "
+                f"{self.input_shape}, expected (batch, n_past, nodes)"
+            )
+
+    @property
+    def n_past(self) -> int | None:
+        """Observed frames the model takes (None when the model leaves it dynamic)."""
+        d = self.input_shape[1]
+        return d if isinstance(d, int) else None
+
+    def _check(self, past: np.ndarray) -> np.ndarray:
+        past = np.asarray(past)
+        if not (np.issubdtype(past.dtype, np.floating) or np.issubdtype(past.dtype, np.integer)):
+            raise OnnxInputError(
+                f"ONNX model {self.path}: input {self.input_name!r} needs real numbers (fed as "
+                f"float32), got dtype {past.dtype}"
+            )
+        expected = self.input_shape
+        ok = past.ndim == len(expected) and all(
+            not isinstance(e, int) or e == g for e, g in zip(expected, past.shape, strict=False)
+        )
+        if not ok:
+            shown = tuple(e if isinstance(e, int) else "batch" for e in expected)
+            raise OnnxInputError(
+                f"ONNX model {self.path}: input {self.input_name!r} expects shape {shown}, "
+                f"given {past.shape}"
+            )
+        return np.ascontiguousarray(past, dtype=np.float32)
+
+    def run(self, past: np.ndarray) -> dict[str, np.ndarray]:
+        """All outputs by name for ``past`` (batch, n_past, nodes)."""
+        feed = {self.input_name: self._check(past)}
+        return dict(zip(self.output_names, self.session.run(self.output_names, feed), strict=True))
+
+    def __call__(self, past: np.ndarray) -> np.ndarray:
+        """The full sequence (batch, n_past + n_future, nodes): the first output."""
+        return self.run(past)[self.output_names[0]]
+
+    def predict_future(self, past: np.ndarray) -> np.ndarray:
+        """Only the predicted frames (batch, n_future, nodes)."""
+        past = np.asarray(past)
+        return self(past)[:, past.shape[1] :]

@@ -1,0 +1,623 @@
+"""Procedural floors for the walking simulator: textures, AprilTag sheets and clutter.
+
+A :class:`FloorTexture` is an 8-bit sRGB image pyramid (RGBA, alpha unused: 4 channels make
+``cv2.remap`` twice as fast) mapped onto the world plane z = 0:
+texel ``(row i, column j)`` of level 0 covers ``x ∈ x0 + [j, j+1]·τ``, ``y ∈ y0 + [i, i+1]·τ``
+(rows run along +y, columns along +x, ``τ = texel_m``); level ``l`` is ``cv2.pyrDown`` applied
+``l`` times, so a level-0 texel coordinate ``c`` is ``c / 2**l`` on level ``l``. A 20 m × 4 m
+floor at 2.5 mm texels takes 51 MB (68 MB with its pyramid).
+
+Families (:data:`FLOOR_FAMILIES`): ``tiles`` (grout lines, per-tile colour jitter, optional
+checker or running bond), ``wood`` (planks with grain and seams), ``carpet`` (multi-scale noise,
+fibre speckle, optional carpet tiles), ``concrete`` (low-frequency blotches, aggregate speckle,
+saw-cut joints), ``textureless`` (very low contrast vinyl).
+
+AprilTag sheets are separate high-resolution decals (:class:`TagSheet`, 0.5 mm texels) so the
+tag cells stay sharp whatever the floor's texel size; the renderer composites them over the
+floor. The floor may also carry the walls and ceiling of a room whose footprint is the texture's
+extent (``room_height_m``).
+
+Tag corner convention (used by :func:`tag_corners_in_board`): the board frame has z out of the
+paper (up when the sheet lies face up on the floor) and each tag reads correctly when seen from
++z with board +x to the right and board +y up; corners are in OpenCV's aruco order (top-left,
+top-right, bottom-right, bottom-left of the marker as read), i.e. the classic ArUco marker frame
+``(-s/2, +s/2), (+s/2, +s/2), (+s/2, -s/2), (-s/2, -s/2)`` shifted to the tag centre. A sheet
+lying face up on the floor therefore has ``T_WfromBoard`` = a rotation about world z and z = 0.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Literal
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from gaitnet.io.types import AprilTagBoard
+from gaitnet.sim.render_color import encode_srgb8, srgb_to_linear
+
+FloorFamily = Literal["tiles", "wood", "carpet", "concrete", "textureless"]
+FLOOR_FAMILIES: tuple[FloorFamily, ...] = ("tiles", "wood", "carpet", "concrete", "textureless")
+
+A3_PAPER_M = (0.420, 0.297)
+SHEET_TEXEL_M = 0.0005
+PAPER_RGB = (0.80, 0.79, 0.76)
+INK_RGB = (0.035, 0.035, 0.04)
+MAX_TEXTURE_SIDE = 32000  # cv2.remap's fixed-point maps limit source images to < 32767 px
+COARSEST_TEXEL_M = 0.02
+
+F32 = NDArray[np.float32]
+Extent = tuple[tuple[float, float], tuple[float, float]]
+
+
+@dataclass(frozen=True, eq=False)
+class TagSheet:
+    """A printed sheet (decal) lying on the floor, in its board frame (see module docstring).
+
+    ``levels[0]`` row ``i`` covers board ``y ∈ y1 - [i, i+1]·τ`` and column ``j`` covers
+    ``x ∈ x0 + [j, j+1]·τ`` (the page as seen from above), ``(x0, x1), (y0, y1) = extent_b``.
+    """
+
+    name: str
+    T_WfromBoard: np.ndarray
+    extent_b: Extent
+    texel_m: float
+    levels: tuple[NDArray[np.uint8], ...]
+
+
+@dataclass(frozen=True, eq=False)
+class FloorTexture:
+    """A textured floor plane (z = 0) with optional tag sheets and room walls.
+
+    ``gloss`` in [0, 1] scales the floor's mirror-like reflection of the ceiling lamps;
+    ``room_height_m`` None means an unbounded floor and nothing else (rays that miss it see no
+    geometry), otherwise the walls stand on the extent's edges and a ceiling closes the room.
+    """
+
+    family: str
+    extent_xy: Extent
+    texel_m: float
+    levels: tuple[NDArray[np.uint8], ...]
+    gloss: float
+    sheets: tuple[TagSheet, ...] = ()
+    boards: tuple[AprilTagBoard, ...] = ()
+    room_height_m: float | None = 2.8
+    wall_rgb: tuple[float, float, float] = (0.55, 0.54, 0.50)
+
+    @property
+    def nbytes(self) -> int:
+        """Memory held by the floor pyramid and the sheets."""
+        total = sum(level.nbytes for level in self.levels)
+        return total + sum(lv.nbytes for s in self.sheets for lv in s.levels)
+
+
+@dataclass(frozen=True)
+class ClutterBox:
+    """A box standing on the floor: centre of its footprint, yaw about z, size (x, y, z) [m]."""
+
+    centre_xy: tuple[float, float]
+    yaw_rad: float
+    size_m: tuple[float, float, float]
+    rgb: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class ClutterCylinder:
+    """An upright cylinder standing on the floor (a bin, a cone base, a stool leg)."""
+
+    centre_xy: tuple[float, float]
+    radius_m: float
+    height_m: float
+    rgb: tuple[float, float, float]
+
+
+Clutter = ClutterBox | ClutterCylinder
+
+
+# ----------------------------------------------------------------------------- noise helpers
+
+CHUNK_ROWS = 256  # floors are generated in bands of texel rows to bound peak memory
+_CUBIC_STD = 0.86  # std of cubic-interpolated unit Gaussian value noise at random positions
+
+
+def _lin(srgb255: tuple[float, float, float]) -> np.ndarray:
+    """Linear albedo of an sRGB colour given in 0–255."""
+    return srgb_to_linear(np.asarray(srgb255, dtype=np.float64) / 255.0).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class _Band:
+    """Texel-centre coordinates of one band of rows: ``ys`` (h, 1), ``xs`` (1, W) [m]."""
+
+    ys: F32
+    xs: F32
+    texel: float
+    origin: tuple[float, float]
+    rng: np.random.Generator
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.ys.shape[0], self.xs.shape[1]
+
+    def white(self) -> F32:
+        """Per-texel white noise (unit std), drawn from this band's own generator."""
+        return self.rng.standard_normal(self.shape, dtype=np.float32)
+
+
+class _Noise:
+    """Smooth value noise (≈ unit std) with feature size ``cell_m`` = (along y, along x) [m],
+    defined over the whole extent and evaluated band by band (bicubic on a random grid)."""
+
+    def __init__(self, rng: np.random.Generator, extent: Extent, cell_m: tuple[float, float]):
+        (x0, x1), (y0, y1) = extent
+        self.cy, self.cx = cell_m
+        self.origin = (x0, y0)
+        gh = int(np.ceil((y1 - y0) / self.cy)) + 4
+        gw = int(np.ceil((x1 - x0) / self.cx)) + 4
+        self.grid = rng.standard_normal((gh, gw)).astype(np.float32) / np.float32(_CUBIC_STD)
+
+    def __call__(self, band: _Band) -> F32:
+        gx = ((band.xs - self.origin[0]) / self.cx + 1.5).astype(np.float32)
+        gy = ((band.ys - self.origin[1]) / self.cy + 1.5).astype(np.float32)
+        mx, my = np.broadcast_to(gx, band.shape), np.broadcast_to(gy, band.shape)
+        return cv2.remap(
+            self.grid, np.ascontiguousarray(mx), np.ascontiguousarray(my), cv2.INTER_CUBIC
+        )
+
+
+class _Fbm:
+    """Fractal sum of :class:`_Noise` octaves (≈ unit std)."""
+
+    def __init__(
+        self,
+        rng: np.random.Generator,
+        extent: Extent,
+        cell_m: tuple[float, float],
+        octaves: int = 4,
+        persistence: float = 0.55,
+    ):
+        amps = persistence ** np.arange(octaves)
+        self.amps = (amps / np.sqrt((amps**2).sum())).astype(np.float32)
+        self.octaves = [
+            _Noise(rng, extent, (cell_m[0] / 2**o, cell_m[1] / 2**o)) for o in range(octaves)
+        ]
+
+    def __call__(self, band: _Band) -> F32:
+        total = np.zeros(band.shape, np.float32)
+        for a, octave in zip(self.amps, self.octaves, strict=True):
+            total += a * octave(band)
+        return total
+
+
+def _line_coverage(pos: F32, period: float, width: float, texel: float) -> F32:
+    """Anti-aliased coverage in [0, 1] of lines of ``width`` every ``period`` (all in metres)."""
+    p = np.mod(pos, np.float32(period))
+    dist = np.minimum(p, np.float32(period) - p)
+    return np.clip((np.float32(width / 2) - dist) / np.float32(texel) + 0.5, 0.0, 1.0)
+
+
+def _pick(rng: np.random.Generator, palette: list[tuple[float, float, float]]) -> np.ndarray:
+    return _lin(palette[int(rng.integers(len(palette)))])
+
+
+def _index_range(lo: float, hi: float, period: float, offset: float) -> tuple[int, int]:
+    """Smallest and largest ``floor((v - offset) / period)`` for v in [lo, hi], padded by 1."""
+    return int(np.floor((lo - offset) / period)) - 1, int(np.floor((hi - offset) / period)) + 1
+
+
+# ----------------------------------------------------------------------------- families
+# Each family draws its parameters from ``rng`` once and returns (evaluate(band) -> linear
+# albedo (h, W, 3) float32, gloss).
+
+Family = tuple[Callable[[_Band], F32], float]
+
+
+def _tiles(rng: np.random.Generator, extent: Extent, texel: float) -> Family:
+    palette = [(205, 203, 198), (186, 176, 160), (232, 230, 226), (120, 120, 118), (175, 110, 80)]
+    base, alt = _pick(rng, palette), _pick(rng, palette)
+    tile_x = float(rng.uniform(0.3, 0.6))
+    tile_y = tile_x * (0.5 if rng.random() < 0.3 else 1.0)
+    bond = 0.5 * tile_x if tile_y < tile_x else 0.0
+    grout_w = float(rng.uniform(0.003, 0.007))
+    off_x, off_y = float(rng.uniform(0, tile_x)), float(rng.uniform(0, tile_y))
+    checker = bool(rng.random() < 0.2)
+    (x0, x1), (y0, y1) = extent
+    r_lo, r_hi = _index_range(y0, y1, tile_y, off_y)
+    c_lo, c_hi = _index_range(x0, x1 + bond, tile_x, off_x)
+    jitter = rng.normal(
+        0.0, [0.035, 0.012, 0.012, 0.012], size=(r_hi - r_lo + 1, c_hi - c_lo + 1, 4)
+    )
+    jitter = jitter.astype(np.float32)
+    mottle = _Fbm(rng, extent, (0.08, 0.08))
+    grout_rgb = _lin((110, 108, 104))
+
+    def evaluate(b: _Band) -> F32:
+        row = np.floor((b.ys - off_y) / tile_y).astype(np.int32)
+        xs_row = b.xs - off_x + np.float32(bond) * (row % 2).astype(np.float32)
+        col = np.floor(xs_row / tile_x).astype(np.int32)
+        tr, tc = row - r_lo, col - c_lo
+        j = jitter[tr, tc]
+        tone = 1.0 + j[..., 0] + 0.035 * mottle(b) + 0.02 * b.white()
+        colour = np.where(((tr + tc) % 2 == 1)[..., None] & checker, alt, base)
+        albedo = colour * (tone[..., None] + j[..., 1:4])
+        ry = b.ys - off_y
+        cov = np.maximum(
+            _line_coverage(xs_row, tile_x, grout_w, b.texel),
+            _line_coverage(ry, tile_y, grout_w, b.texel),
+        )
+        bevel = np.maximum(
+            _line_coverage(xs_row, tile_x, grout_w + 0.004, b.texel),
+            _line_coverage(ry, tile_y, grout_w + 0.004, b.texel),
+        )
+        albedo *= (1.0 - 0.12 * bevel)[..., None]
+        grout = grout_rgb * (0.9 + 0.05 * b.white())[..., None]
+        return albedo * (1.0 - cov[..., None]) + grout * cov[..., None]
+
+    return evaluate, float(rng.uniform(0.35, 0.7))
+
+
+def _wood(rng: np.random.Generator, extent: Extent, texel: float) -> Family:
+    palette = [(176, 132, 86), (110, 75, 50), (205, 170, 125), (160, 150, 140), (150, 100, 62)]
+    base = _pick(rng, palette)
+    along_x = bool(rng.random() < 0.5)
+    plank_w = float(rng.uniform(0.09, 0.2))
+    plank_len = float(rng.uniform(0.9, 2.0))
+    b_off = float(rng.uniform(0, plank_w))
+    (x0, x1), (y0, y1) = extent
+    (a0, a1), (b0, b1) = ((x0, x1), (y0, y1)) if along_x else ((y0, y1), (x0, x1))
+    j_lo, j_hi = _index_range(b0, b1, plank_w, b_off)
+    shifts = rng.uniform(0, plank_len, size=j_hi - j_lo + 1).astype(np.float32)
+    k_lo, k_hi = _index_range(a0, a1 + plank_len, plank_len, 0.0)
+    params = rng.normal(0.0, 1.0, size=(j_hi - j_lo + 1, k_hi - k_lo + 1, 4)).astype(np.float32)
+    cell = (0.01, 0.25) if along_x else (0.25, 0.01)
+    warp = _Fbm(rng, extent, cell, octaves=3)
+    fibre = _Noise(rng, extent, (texel, 0.03) if along_x else (0.03, texel))
+    tint = np.array([1.0, 0.98, 0.96], np.float32)
+
+    def evaluate(b: _Band) -> F32:
+        a, c = (b.xs, b.ys) if along_x else (b.ys, b.xs)
+        j = np.floor((c - b_off) / plank_w).astype(np.int32)
+        u = a + shifts[j - j_lo]
+        k = np.floor(u / plank_len).astype(np.int32)
+        p = params[j - j_lo, k - k_lo]
+        v = (c - b_off) - j.astype(np.float32) * plank_w
+        wv = warp(b)
+        freq = 1.0 / (0.006 + 0.004 * np.abs(p[..., 1]))
+        ring = 0.5 + 0.5 * np.sin(np.float32(2 * np.pi) * (v * freq + 0.7 * wv + p[..., 2]))
+        tone = 1.0 + 0.08 * p[..., 0] - 0.22 * ring**3 + 0.04 * fibre(b) + 0.05 * wv
+        albedo = base * tone[..., None] * (1.0 + 0.03 * p[..., 3:4]) * tint
+        seam = np.maximum(
+            _line_coverage(c - b_off, plank_w, 0.0015, b.texel),
+            _line_coverage(u, plank_len, 0.0015, b.texel),
+        )
+        return albedo * (1.0 - 0.65 * seam)[..., None]
+
+    return evaluate, float(rng.uniform(0.2, 0.45))
+
+
+def _carpet(rng: np.random.Generator, extent: Extent, texel: float) -> Family:
+    palette = [(110, 110, 112), (80, 90, 110), (170, 155, 130), (100, 62, 58), (62, 62, 64)]
+    base, fleck_rgb = _pick(rng, palette), _pick(rng, palette)
+    broad = _Fbm(rng, extent, (0.2, 0.2))
+    tufts = _Noise(rng, extent, (0.008, 0.008))
+    carpet_tiles = bool(rng.random() < 0.5)
+    size = float(rng.uniform(0.45, 0.6))
+
+    def evaluate(b: _Band) -> F32:
+        tone = 1.0 + 0.07 * broad(b) + 0.06 * tufts(b) + 0.14 * b.white()
+        if carpet_tiles:
+            cx = np.floor(b.xs / size).astype(np.int32)
+            cy = np.floor(b.ys / size).astype(np.int32)
+            tone += np.where((cx + cy) % 2 == 0, 0.04, -0.04).astype(np.float32)
+            seam = np.maximum(
+                _line_coverage(b.xs, size, 0.002, b.texel),
+                _line_coverage(b.ys, size, 0.002, b.texel),
+            )
+            tone -= 0.15 * seam
+        fleck = (b.white() > 2.0)[..., None]
+        return np.where(fleck, fleck_rgb, base * tone[..., None])
+
+    return evaluate, 0.0
+
+
+def _concrete(rng: np.random.Generator, extent: Extent, texel: float) -> Family:
+    base = _lin((150, 148, 142)) * np.float32(rng.uniform(0.8, 1.15))
+    blotch = _Fbm(rng, extent, (0.6, 0.6))
+    mottle = _Noise(rng, extent, (0.03, 0.03))
+    stain = _Fbm(rng, extent, (0.25, 0.25), octaves=3)
+    joint = float(rng.uniform(3.0, 5.0))
+
+    def evaluate(b: _Band) -> F32:
+        tone = 1.0 + 0.11 * blotch(b) + 0.05 * mottle(b) + 0.04 * b.white()
+        dots = b.white()
+        tone += np.where(np.abs(dots) > 2.3, 0.18 * np.sign(dots), 0.0).astype(np.float32)
+        tone -= np.clip(stain(b) - 1.6, 0.0, 0.5) * 0.4
+        cut = np.maximum(
+            _line_coverage(b.xs - 0.3, joint, 0.004, b.texel),
+            _line_coverage(b.ys - 0.2, joint, 0.004, b.texel),
+        )
+        return base * (tone * (1.0 - 0.55 * cut))[..., None]
+
+    return evaluate, float(rng.uniform(0.08, 0.25))
+
+
+def _textureless(rng: np.random.Generator, extent: Extent, texel: float) -> Family:
+    palette = [(200, 200, 196), (225, 222, 215), (185, 192, 198), (210, 200, 185)]
+    base = _pick(rng, palette)
+    broad = _Noise(rng, extent, (1.5, 1.5))
+
+    def evaluate(b: _Band) -> F32:
+        tone = 1.0 + 0.012 * broad(b) + 0.004 * b.white()
+        return base * tone[..., None]
+
+    return evaluate, float(rng.uniform(0.15, 0.35))
+
+
+_FAMILIES: dict[str, Callable[[np.random.Generator, Extent, float], Family]] = {
+    "tiles": _tiles,
+    "wood": _wood,
+    "carpet": _carpet,
+    "concrete": _concrete,
+    "textureless": _textureless,
+}
+
+
+def _render_family(
+    rng: np.random.Generator, family: str, extent: Extent, texel: float
+) -> tuple[NDArray[np.uint8], float]:
+    """Evaluate a family band by band into an sRGB uint8 image (rows along +y)."""
+    evaluate, gloss = _FAMILIES[family](rng, extent, texel)
+    (x0, x1), (y0, y1) = extent
+    w, h = round((x1 - x0) / texel), round((y1 - y0) / texel)
+    xs = (x0 + (np.arange(w) + 0.5) * texel).astype(np.float32)[None, :]
+    out = np.full((h, w, 4), 255, np.uint8)
+    seeds = np.random.SeedSequence(int(rng.integers(2**63))).spawn(
+        (h + CHUNK_ROWS - 1) // CHUNK_ROWS
+    )
+    for i, r0 in enumerate(range(0, h, CHUNK_ROWS)):
+        r1 = min(h, r0 + CHUNK_ROWS)
+        ys = (y0 + (np.arange(r0, r1) + 0.5) * texel).astype(np.float32)[:, None]
+        band = _Band(ys, xs, texel, (x0, y0), np.random.default_rng(seeds[i]))
+        out[r0:r1, :, :3] = encode_srgb8(evaluate(band))
+    return out, gloss
+
+
+# ----------------------------------------------------------------------------- pyramids
+
+
+def build_pyramid(img: NDArray[np.uint8], texel_m: float) -> tuple[NDArray[np.uint8], ...]:
+    """RGBA mip levels by repeated ``cv2.pyrDown`` until texels reach ~2 cm or the image is
+    tiny (4 channels: cv2.remap samples them twice as fast as 3)."""
+    if img.shape[2] == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_RGB2RGBA)
+    levels = [img]
+    texel = texel_m
+    while texel * 2 <= COARSEST_TEXEL_M * 1.01 and min(levels[-1].shape[:2]) >= 8:
+        levels.append(cv2.pyrDown(levels[-1]))
+        texel *= 2
+    return tuple(levels)
+
+
+MIP_BLEND = 0.35  # width (in levels) of the cross-fade between two mip levels
+
+
+def sample_mipmapped(
+    levels: tuple[NDArray[np.uint8], ...],
+    map_x: F32,
+    map_y: F32,
+    lod: F32,
+    border: int = cv2.BORDER_REFLECT_101,
+) -> NDArray[np.uint8]:
+    """Mip-mapped bilinear lookup: the level nearest to ``lod``, cross-faded with the next one
+    over :data:`MIP_BLEND` levels around each half-way point (cheaper than full trilinear).
+
+    ``map_x``, ``map_y`` (H, W) are level-0 texel coordinates (texel centres at integers);
+    ``lod`` (H, W) the fractional level. Each level samples only the rows it contributes to.
+    """
+    top = len(levels) - 1
+    lod = np.clip(lod, 0.0, top)
+    row_lo, row_hi = lod.min(axis=1), lod.max(axis=1)
+    reach = 0.5 + MIP_BLEND / 2  # a level contributes to lods within this distance
+    out = np.empty((*lod.shape, 4), np.uint8)
+    acc = np.zeros(lod.shape, np.float32)
+    covered = np.zeros(lod.shape[0], bool)
+    for lvl, tex in enumerate(levels):
+        lo = -np.inf if lvl == 0 else lvl - reach
+        hi = np.inf if lvl == top else lvl + reach
+        rows = np.flatnonzero((row_hi > lo) & (row_lo < hi))
+        if rows.size == 0:
+            continue
+        r0, r1 = int(rows[0]), int(rows[-1]) + 1
+        d = np.abs(lod[r0:r1] - np.float32(lvl))
+        if lvl == 0:
+            d = np.where(lod[r0:r1] < 0, 0, d)
+        w = np.clip(0.5 + (0.5 - d) / np.float32(MIP_BLEND), 0.0, 1.0)
+        if lvl == top:
+            w[lod[r0:r1] >= top] = 1.0
+        scale = np.float32(0.5**lvl)
+        img = cv2.remap(
+            tex, map_x[r0:r1] * scale, map_y[r0:r1] * scale, cv2.INTER_LINEAR, borderMode=border
+        )
+        new = ~covered[r0:r1]
+        out[r0:r1][new] = img[new]
+        old = np.flatnonzero(~new)
+        if old.size:
+            b0, b1 = int(old[0]), int(old[-1]) + 1
+            out[r0 + b0 : r0 + b1] = cv2.blendLinear(
+                out[r0 + b0 : r0 + b1], img[b0:b1], acc[r0 + b0 : r0 + b1], w[b0:b1]
+            )
+        acc[r0:r1] += w
+        covered[r0:r1] = True
+    return cv2.cvtColor(out, cv2.COLOR_RGBA2RGB)
+
+
+# ----------------------------------------------------------------------------- tag sheets
+
+
+def tag_corners_in_board(board: AprilTagBoard, tag_id: int) -> np.ndarray:
+    """(4, 3) corners of tag ``tag_id`` in the board frame, OpenCV aruco order (module doc)."""
+    c = board.tag_centre_in_board(tag_id)
+    h = board.tag_size_m / 2.0
+    return c + np.array([[-h, h, 0.0], [h, h, 0.0], [h, -h, 0.0], [-h, -h, 0.0]])
+
+
+def _sheet_extent(board: AprilTagBoard, margin_m: float = 0.01) -> Extent:
+    """A3 paper centred on the tag grid (long side along the longer grid side)."""
+    s, g = board.tag_size_m, board.gap_m
+    gw = board.cols * s + (board.cols - 1) * g
+    gh = board.rows * s + (board.rows - 1) * g
+    long_, short = A3_PAPER_M
+    pw, ph = (long_, short) if gw >= gh else (short, long_)
+    pw, ph = max(pw, gw + 2 * margin_m), max(ph, gh + 2 * margin_m)
+    return ((gw - pw) / 2, (gw + pw) / 2), ((gh - ph) / 2, (gh + ph) / 2)
+
+
+def _overlap(starts_tex: np.ndarray, tau: float, cell_starts: np.ndarray, w: float) -> np.ndarray:
+    """Fraction of each texel interval ``[a, a+τ]`` covered by each cell ``[c, c+w]``."""
+    a = starts_tex[:, None]
+    c = cell_starts[None, :]
+    return np.clip(np.minimum(a + tau, c + w) - np.maximum(a, c), 0.0, None) / tau
+
+
+def _marker_bits(tag_id: int) -> np.ndarray:
+    """8×8 cells of a tag36h11 marker (1 = black), rows top to bottom as read."""
+    dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
+    if not 0 <= tag_id < dictionary.bytesList.shape[0]:
+        raise ValueError(f"tag36h11 has no id {tag_id}")
+    img = cv2.aruco.generateImageMarker(dictionary, tag_id, 8, borderBits=1)
+    return (img < 128).astype(np.float64)
+
+
+def _sheet_blackness(board: AprilTagBoard, extent: Extent, tau: float) -> np.ndarray:
+    """Exact box-filtered ink coverage of each sheet texel (rows along −y_b)."""
+    (x0, x1), (y0, y1) = extent
+    w, h = round((x1 - x0) / tau), round((y1 - y0) / tau)
+    ink = np.zeros((h, w))
+    cell = board.tag_size_m / 8
+    for k in range(board.rows * board.cols):
+        tag_id = board.first_id + k
+        cx, cy, _ = board.tag_centre_in_board(tag_id)
+        half = board.tag_size_m / 2
+        c0, c1 = int((cx - half - x0) / tau) - 1, int((cx + half - x0) / tau) + 2
+        r0, r1 = int((y1 - cy - half) / tau) - 1, int((y1 - cy + half) / tau) + 2
+        c0, r0, c1, r1 = max(c0, 0), max(r0, 0), min(c1, w), min(r1, h)
+        tex_x = x0 + np.arange(c0, c1) * tau
+        tex_ny = -(y1 - np.arange(r0, r1) * tau)  # texel rows as intervals of −y
+        cells_x = cx - half + np.arange(8) * cell
+        cells_ny = -(cy + half) + np.arange(8) * cell  # marker row k spans −y ∈ [.., .. + cell]
+        Ox = _overlap(tex_x, tau, cells_x, cell)
+        Oy = _overlap(tex_ny, tau, cells_ny, cell)
+        ink[r0:r1, c0:c1] += Oy @ _marker_bits(tag_id) @ Ox.T
+    return np.clip(ink, 0.0, 1.0)
+
+
+def _check_board_on_floor(board: AprilTagBoard) -> np.ndarray:
+    T = np.asarray(board.T_WfromBoard, dtype=np.float64)
+    if T.shape != (4, 4):
+        raise ValueError(f"board {board.name!r}: T_WfromBoard must be 4x4")
+    if abs(T[2, 3]) > 0.01 or T[2, 2] < 0.999:
+        raise ValueError(
+            f"board {board.name!r} must lie face up on the floor (board z = world z, height 0); "
+            f"got z axis {T[:3, 2].round(3).tolist()} and height {T[2, 3]:.3f} m"
+        )
+    if board.family.replace("_", "").lower() not in ("tag36h11", "apriltag36h11"):
+        raise ValueError(f"board {board.name!r}: only tag36h11 is rendered, got {board.family!r}")
+    return T
+
+
+def make_tag_sheet(
+    board: AprilTagBoard, rng: np.random.Generator, texel_m: float = SHEET_TEXEL_M
+) -> TagSheet:
+    """Render ``board`` as an A3 sheet of white paper with its tags (module docstring frames)."""
+    T = _check_board_on_floor(board)
+    extent = _sheet_extent(board)
+    ink = _sheet_blackness(board, extent, texel_m).astype(np.float32)
+    shape = ink.shape
+    paper = np.asarray(PAPER_RGB, np.float32) * np.float32(rng.uniform(0.95, 1.05))
+    grain = 1.0 + 0.01 * cv2.GaussianBlur(rng.standard_normal(shape, np.float32), (0, 0), 3.0) * 6
+    albedo = paper * grain[..., None] * (1 - ink[..., None]) + np.asarray(INK_RGB) * ink[..., None]
+    levels = build_pyramid(encode_srgb8(albedo), texel_m)
+    return TagSheet(board.name, T, extent, texel_m, levels)
+
+
+# ----------------------------------------------------------------------------- public API
+
+
+def make_floor(
+    family: str,
+    rng: np.random.Generator,
+    extent_xy: Extent = ((-1.0, 19.0), (-2.0, 2.0)),
+    texel_m: float = 0.0025,
+    boards: tuple[AprilTagBoard, ...] = (),
+    room_height_m: float | None = 2.8,
+) -> FloorTexture:
+    """A procedural floor of ``family`` (one of :data:`FLOOR_FAMILIES`) over ``extent_xy``.
+
+    ``boards`` become A3 tag sheets (decals) lying on the floor; ``room_height_m`` puts walls
+    on the extent's edges and a ceiling at that height (None: floor only).
+    """
+    if family not in _FAMILIES:
+        raise ValueError(f"unknown floor family {family!r}; choose one of {FLOOR_FAMILIES}")
+    (x0, x1), (y0, y1) = extent_xy
+    if x1 <= x0 or y1 <= y0 or texel_m <= 0:
+        raise ValueError(f"empty floor extent {extent_xy} or texel size {texel_m}")
+    w, h = round((x1 - x0) / texel_m), round((y1 - y0) / texel_m)
+    if max(w, h) > MAX_TEXTURE_SIDE:
+        raise ValueError(
+            f"floor texture {w}x{h} texels exceeds {MAX_TEXTURE_SIDE} per side; "
+            f"use a larger texel_m (now {texel_m}) or a smaller extent"
+        )
+    image, gloss = _render_family(rng, family, extent_xy, texel_m)
+    levels = build_pyramid(image, texel_m)
+    sheets = tuple(make_tag_sheet(b, rng) for b in boards)
+    wall = tuple(float(c) for c in _lin((200, 196, 188)) * rng.uniform(0.8, 1.1))
+    return FloorTexture(
+        family=family,
+        extent_xy=((float(x0), float(x1)), (float(y0), float(y1))),
+        texel_m=float(texel_m),
+        levels=levels,
+        gloss=gloss,
+        sheets=sheets,
+        boards=tuple(boards),
+        room_height_m=room_height_m,
+        wall_rgb=wall,  # type: ignore[arg-type]
+    )
+
+
+def make_clutter(
+    rng: np.random.Generator,
+    extent_xy: Extent,
+    n: int = 6,
+    path_y_m: float = 0.0,
+    keep_out_m: float = 0.7,
+) -> tuple[Clutter, ...]:
+    """``n`` boxes and cylinders placed inside ``extent_xy`` but ≥ ``keep_out_m`` from the
+    walking path (the line y = ``path_y_m``)."""
+    (x0, x1), (y0, y1) = extent_xy
+    colours = [
+        (0.45, 0.05, 0.03),
+        (0.05, 0.12, 0.4),
+        (0.5, 0.4, 0.08),
+        (0.06, 0.25, 0.08),
+        (0.3, 0.3, 0.3),
+        (0.6, 0.58, 0.55),
+        (0.2, 0.12, 0.06),
+    ]
+    out: list[Clutter] = []
+    for _ in range(20 * n):
+        if len(out) == n:
+            break
+        cy = float(rng.uniform(y0 + 0.2, y1 - 0.2))
+        size = float(rng.uniform(0.15, 0.5))
+        if abs(cy - path_y_m) < keep_out_m + size:
+            continue
+        centre = (float(rng.uniform(x0 + 0.3, x1 - 0.3)), cy)
+        rgb = colours[int(rng.integers(len(colours)))]
+        if rng.random() < 0.6:
+            dims = (size, size * float(rng.uniform(0.5, 1.5)), float(rng.uniform(0.1, 0.6)))
+            out.append(ClutterBox(centre, float(rng.uniform(0, np.pi)), dims, rgb))
+        else:
+            out.append(ClutterCylinder(centre, size / 2, float(rng.uniform(0.2, 0.9)), rgb))
+    return tuple(out)

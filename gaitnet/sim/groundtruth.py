@@ -1,0 +1,204 @@
+"""Write a simulated session's ``groundtruth/`` folder (documented in docs/groundtruth.md).
+
+Everything is in SI units and the world frame (z up, floor z = 0). Trajectories are TUM files
+(world-from-sensor poses), tables are CSV with a header row, arrays are ``.npz`` (no pickles).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from gaitnet.geometry import make_T
+from gaitnet.io.atomic import atomic_save, atomic_write_text
+from gaitnet.io.images import encode_png
+from gaitnet.io.trajectory import write_tum
+from gaitnet.motion.skeleton import JOINT_NAMES, ROTATED_SMPL_INDICES, SMPL_JOINT_INDICES
+from gaitnet.sim.gait import Walk
+from gaitnet.sim.imu import ImuTruth
+from gaitnet.sim.scene import SIDES
+
+
+def _csv(header: list[str], rows: list[list]) -> str:
+    out = io.StringIO()
+    out.write(",".join(header) + "\n")
+    for row in rows:
+        out.write(",".join(_fmt(v) for v in row) + "\n")
+    return out.getvalue()
+
+
+def _fmt(value) -> str:
+    if isinstance(value, (bool, np.bool_)):
+        return str(int(value))
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        return "" if not np.isfinite(value) else f"{float(value):.6f}"
+    return str(value)
+
+
+def _save_npz(path: Path, **arrays: np.ndarray) -> None:
+    def save(tmp: str) -> None:
+        with open(tmp, "wb") as handle:
+            np.savez_compressed(handle, **arrays)
+
+    atomic_save(path, save)
+
+
+class GroundTruthWriter:
+    """Collects per-frame label maps and writes the tables at the end."""
+
+    def __init__(self, root: Path, write_labels: bool = True) -> None:
+        self.root = Path(root)
+        self.write_labels = write_labels
+        self.root.mkdir(parents=True, exist_ok=True)
+        if write_labels:
+            (self.root / "labels").mkdir(exist_ok=True)
+            (self.root / "instances").mkdir(exist_ok=True)
+
+    def add_frame(self, t_ns: int, label: np.ndarray, instance: np.ndarray) -> None:
+        if not self.write_labels:
+            return
+        (self.root / "labels" / f"{t_ns}.png").write_bytes(encode_png(label))
+        (self.root / "instances" / f"{t_ns}.png").write_bytes(encode_png(instance))
+
+    def write_all(
+        self,
+        walk: Walk,
+        times: np.ndarray,
+        T_WfromC: np.ndarray,
+        T_PfromC: np.ndarray,
+        T_PfromI: np.ndarray,
+        imu: ImuTruth,
+        marker_checks: list[tuple],
+    ) -> None:
+        root = self.root
+        t_ns = np.round(times * 1e9).astype(np.int64)
+        R_WP, p_P = walk.pelvis_pose(times)
+        T_WP = make_T(R_WP, p_P)
+        T_IfromC = np.linalg.inv(T_PfromI) @ T_PfromC
+        write_tum(root / "camera_frames.tum", times, T_WfromC, "camera (colour) at frame times")
+        write_tum(root / "imu_frames.tum", times, T_WP @ T_PfromI, "IMU at frame times")
+        write_tum(root / "pelvis_frames.tum", times, T_WP, "pelvis (SMPL joint 0) at frame times")
+        T_WI = make_T(imu.R_WfromI, imu.p_IinW)
+        write_tum(root / "imu_imurate.tum", imu.t_s, T_WI, "IMU at IMU sample times")
+        write_tum(
+            root / "camera_imurate.tum", imu.t_s, T_WI @ T_IfromC, "camera at IMU sample times"
+        )
+
+        root_orient, trans, joint_aa = walk.smpl_pose(times)
+        _save_npz(
+            root / "joints.npz",
+            t_ns=t_ns,
+            smpl_indices=np.asarray(SMPL_JOINT_INDICES, np.int64),
+            joint_names=np.asarray(JOINT_NAMES),
+            positions=walk.joints(times),
+            root_orient=root_orient,
+            trans=trans,
+            joint_aa=joint_aa,
+            joint_aa_indices=np.asarray(ROTATED_SMPL_INDICES, np.int64),
+            rest_joints=walk.skeleton.rest_joints,
+        )
+        markers, soles = walk.marker_points(times), walk.sole_centres(times)
+        header = ["t_ns"] + [
+            f"{what}_{side}_{a}" for what in ("marker", "sole") for side in SIDES for a in "xyz"
+        ]
+        rows = [[int(t), *markers[k].ravel(), *soles[k].ravel()] for k, t in enumerate(t_ns)]
+        atomic_write_text(root / "feet.csv", _csv(header, rows))
+
+        ev_rows, stride_rows = [], []
+        for side in SIDES:
+            ev = walk.events[side]
+            for i in range(len(ev.flat_start_s)):
+                ev_rows.append(
+                    [
+                        side,
+                        i,
+                        ev.hs_s[i],
+                        ev.ff_s[i],
+                        ev.ho_s[i],
+                        ev.to_s[i],
+                        ev.flat_start_s[i],
+                        ev.flat_end_s[i],
+                        *ev.sole_centre_W[i],
+                        ev.yaw_rad[i],
+                    ]
+                )
+            for i, length in enumerate(ev.stride_lengths_m):
+                stride_rows.append(
+                    [side, i, ev.flat_start_s[i], ev.flat_start_s[i + 1], ev.hs_s[i + 1], length]
+                )
+        atomic_write_text(
+            root / "events.csv",
+            _csv(
+                [
+                    "side",
+                    "stance",
+                    "heel_strike_s",
+                    "foot_flat_s",
+                    "heel_off_s",
+                    "toe_off_s",
+                    "flat_start_s",
+                    "flat_end_s",
+                    "sole_x_m",
+                    "sole_y_m",
+                    "sole_z_m",
+                    "yaw_rad",
+                ],
+                ev_rows,
+            ),
+        )
+        atomic_write_text(
+            root / "strides.csv",
+            _csv(
+                [
+                    "side",
+                    "stride",
+                    "from_flat_start_s",
+                    "to_flat_start_s",
+                    "heel_strike_s",
+                    "stride_length_m",
+                ],
+                stride_rows,
+            ),
+        )
+        steps = walk.steps
+        atomic_write_text(
+            root / "steps.csv",
+            _csv(
+                ["side", "heel_strike_s", "step_length_m", "step_width_m"],
+                [
+                    [s, h, length, w]
+                    for s, h, length, w in zip(
+                        steps.side, steps.hs_s, steps.length_m, steps.width_m, strict=True
+                    )
+                ],
+            ),
+        )
+        _save_npz(
+            root / "imu_truth.npz",
+            t_ns=np.round(imu.t_s * 1e9).astype(np.int64),
+            specific_force=imu.specific_force,
+            angular_rate=imu.omega_I,
+            gyro_bias=imu.gyro_bias,
+            accel_bias=imu.accel_bias,
+            velocity_W=imu.v_IinW,
+        )
+        atomic_write_text(
+            root / "marker_pixels.csv",
+            _csv(
+                ["t_ns", "side", "u", "v", "in_image", "visible", "on_foot_label"],
+                [list(c) for c in marker_checks],
+            ),
+        )
+        subject = {
+            k: (list(v) if isinstance(v, tuple) else v)
+            for k, v in dataclasses.asdict(walk.subject).items()
+        }
+        subject["marker_in_shoe_m"] = walk.subject.marker_in_shoe().tolist()
+        subject["ankle_in_shoe_m"] = walk.subject.ankle_in_shoe().tolist()
+        atomic_write_text(root / "subject.yaml", yaml.safe_dump(subject, sort_keys=False))
