@@ -115,6 +115,18 @@ def _cmd_simulate_dataset(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from gaitnet.evaluation.evaluate import evaluate_result, write_report
+
+    report = evaluate_result(args.result_dir, args.session)
+    for key, value in sorted(report.metrics.items()):
+        print(f"{key:14s} {value:.4f}")
+    if args.json:
+        write_report(report, args.json)
+        print(f"wrote {args.json}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="gaitnet",
@@ -175,6 +187,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides")
     p.set_defaults(func=_cmd_simulate_dataset)
+
+    p = sub.add_parser(
+        "evaluate",
+        help="compare a result folder with a simulated session's ground truth (JSON metrics)",
+        description="Reports the DESIGN.md metric keys the inputs allow: mpjpe_m from "
+        "RESULT_DIR/joints.npz, body_ate_m from RESULT_DIR/camera_frames.tum.",
+    )
+    p.add_argument("result_dir", help="folder with results (joints.npz, camera_frames.tum)")
+    p.add_argument("--session", required=True, help="simulated session folder (groundtruth/)")
+    p.add_argument("--json", default=None, help="write the metrics to this JSON file")
+    p.set_defaults(func=_cmd_evaluate)
 
     return parser
 

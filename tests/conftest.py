@@ -15,3 +15,17 @@ from sessionfactory import make_tiny_session  # noqa: E402
 @pytest.fixture
 def tiny_session(tmp_path: Path) -> Path:
     return make_tiny_session(tmp_path / "session")
+
+
+@pytest.fixture(scope="session")
+def tiny_sim_session(tmp_path_factory) -> Path:
+    """A small simulated session (160×120, 6 Hz) shared by the tests that need one."""
+    from gaitnet.config import load_config
+    from gaitnet.sim.config import SimConfig
+    from gaitnet.sim.session import simulate_session
+
+    config = Path(__file__).parents[1] / "configs" / "sim" / "tiny.yaml"
+    cfg = load_config(SimConfig, config, ["camera.fps=6", "output.preview_frames=2"])
+    out = tmp_path_factory.mktemp("sim") / "tiny"
+    simulate_session(cfg, 3, out)
+    return out

@@ -31,10 +31,9 @@ def tree_digest(root: Path) -> dict[str, str]:
 
 
 @pytest.fixture(scope="module")
-def tiny_sim(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("sim") / "s3"
-    simulate_session(load_config(SimConfig, CONFIG, FAST), 3, out)
-    return out
+def tiny_sim(tiny_sim_session: Path) -> Path:
+    """The shared tiny session (conftest): tiny.yaml + FAST overrides, seed 3."""
+    return tiny_sim_session
 
 
 def test_reader_accepts_simulated_session(tiny_sim: Path) -> None:

@@ -1,0 +1,1 @@
+"""Evaluation against ground truth: metrics (pure math) and the ``gaitnet evaluate`` job."""
