@@ -133,9 +133,13 @@ def _appearance(
     return appearance
 
 
+FRAME_MARGIN_S = 0.05  # frames start/end this far inside the IMU stream, as on a real device
+
+
 def frame_times(duration_s: float, fps: float) -> np.ndarray:
-    """Camera timestamps [s] on the nominal grid within the walk."""
-    return np.arange(int(np.floor(duration_s * fps)) + 1) / fps
+    """Camera timestamps [s] on the nominal grid, inside the IMU's span by a small margin."""
+    n = int(np.floor((duration_s - 2 * FRAME_MARGIN_S) * fps)) + 1
+    return FRAME_MARGIN_S + np.arange(n) / fps
 
 
 def marker_pixel_checks(
