@@ -74,7 +74,7 @@ def body_at(x: float, phase: float) -> BodyState:
     """Both feet ahead of the pelvis (at x): left near heel strike, right in mid swing."""
     sway = 0.04 * np.sin(phase)
     shoe_l, ankle_l = _shoe("left", x + 0.46 + sway, 0.10, 0.06, np.deg2rad(-6))
-    shoe_r, ankle_r = _shoe("right", x + 0.30 - sway, -0.11, -0.10, np.deg2rad(18))
+    shoe_r, ankle_r = _shoe("right", x + 0.36 - sway, -0.17, -0.15, np.deg2rad(14))
     legs = []
     for side, y, ankle in (("left", 0.09, ankle_l), ("right", -0.09, ankle_r)):
         hip = np.array([x - 0.02, y, 0.9])

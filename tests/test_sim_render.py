@@ -141,6 +141,29 @@ def test_leg_in_front_occludes_shoe_and_primitives_behind_camera_are_clipped(pla
     assert not res.label.any()
 
 
+def test_antialiasing_changes_only_edge_colours_and_normals_face_the_camera(plain_floor):
+    w, h = 160, 120
+    K = K_of(w, h, 96.0)
+    T = camera((0.0, 0.0, 1.0), 55.0)
+    leg = LegSegment("left", "shank", np.array([0.75, 0.2, 0.5]), np.array([0.7, 0.12, 0.1]),
+                     0.055, 0.045)  # fmt: skip
+    body = BodyState((leg,), (shoe("left", (0.7, 0.12)), shoe("right", (0.6, -0.1))))
+    a = render_frame(K, w, h, T, plain_floor, body, APPEARANCE, return_normals=True)
+    b = render_frame(K, w, h, T, plain_floor, body, APPEARANCE, antialias=False)
+    for name in ("depth_m", "label", "instance"):
+        assert np.array_equal(getattr(a, name), getattr(b, name))
+    changed = np.abs(a.rgb_linear - b.rgb_linear).max(axis=-1) > 0
+    assert changed.any()
+    near_edge = cv2.dilate((cv2.Laplacian(a.label, cv2.CV_16S) != 0).astype(np.uint8), None)
+    near_edge |= cv2.dilate((cv2.Laplacian(a.depth_m, cv2.CV_32F) > 0.02).astype(np.uint8), None)
+    assert not (changed & (near_edge == 0) & (a.label != LABEL_FOOT)).any()  # shoes: sole/upper
+    n = a.normals[a.label > 0]
+    assert np.allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-4)
+    v, u = np.nonzero(a.label > 0)
+    rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones(u.size)], axis=1)
+    assert ((n * rays).sum(axis=1) < 0).all()
+
+
 def test_apriltag_sheet_is_detected_where_the_board_says():
     T_WfromBoard = make_T(so3_exp([0.0, 0.0, 0.2]), np.array([0.45, -0.12, 0.0]))
     board = AprilTagBoard("b", "tag36h11", 5, 7, 0.045, 0.013, 10, T_WfromBoard)

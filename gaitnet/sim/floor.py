@@ -414,7 +414,8 @@ def sample_mipmapped(
     over :data:`MIP_BLEND` levels around each half-way point (cheaper than full trilinear).
 
     ``map_x``, ``map_y`` (H, W) are level-0 texel coordinates (texel centres at integers);
-    ``lod`` (H, W) the fractional level. Each level samples only the rows it contributes to.
+    ``lod`` (H, W) the fractional level; returns RGB (H, W, 3). Each level samples only the
+    rows it contributes to, and weights are only computed in rows that mix two levels.
     """
     top = len(levels) - 1
     lod = np.clip(lod, 0.0, top)
@@ -422,7 +423,6 @@ def sample_mipmapped(
     reach = 0.5 + MIP_BLEND / 2  # a level contributes to lods within this distance
     out = np.empty((*lod.shape, 4), np.uint8)
     acc = np.zeros(lod.shape, np.float32)
-    covered = np.zeros(lod.shape[0], bool)
     for lvl, tex in enumerate(levels):
         lo = -np.inf if lvl == 0 else lvl - reach
         hi = np.inf if lvl == top else lvl + reach
@@ -430,26 +430,24 @@ def sample_mipmapped(
         if rows.size == 0:
             continue
         r0, r1 = int(rows[0]), int(rows[-1]) + 1
-        d = np.abs(lod[r0:r1] - np.float32(lvl))
-        if lvl == 0:
-            d = np.where(lod[r0:r1] < 0, 0, d)
-        w = np.clip(0.5 + (0.5 - d) / np.float32(MIP_BLEND), 0.0, 1.0)
-        if lvl == top:
-            w[lod[r0:r1] >= top] = 1.0
-        scale = np.float32(0.5**lvl)
-        img = cv2.remap(
-            tex, map_x[r0:r1] * scale, map_y[r0:r1] * scale, cv2.INTER_LINEAR, borderMode=border
-        )
-        new = ~covered[r0:r1]
-        out[r0:r1][new] = img[new]
-        old = np.flatnonzero(~new)
-        if old.size:
-            b0, b1 = int(old[0]), int(old[-1]) + 1
-            out[r0 + b0 : r0 + b1] = cv2.blendLinear(
-                out[r0 + b0 : r0 + b1], img[b0:b1], acc[r0 + b0 : r0 + b1], w[b0:b1]
-            )
-        acc[r0:r1] += w
-        covered[r0:r1] = True
+        mx, my = map_x[r0:r1], map_y[r0:r1]
+        if lvl:
+            mx, my = mx * np.float32(0.5**lvl), my * np.float32(0.5**lvl)
+        img = cv2.remap(tex, mx, my, cv2.INTER_LINEAR, borderMode=border)
+        pure = (row_lo[r0:r1] >= lo + MIP_BLEND) & (row_hi[r0:r1] <= hi - MIP_BLEND)
+        out[r0:r1][pure] = img[pure]
+        mixed = np.flatnonzero(~pure)
+        if mixed.size:
+            b0, b1 = int(mixed[0]), int(mixed[-1]) + 1
+            w = 0.5 + (0.5 - np.abs(lod[r0 + b0 : r0 + b1] - np.float32(lvl))) / MIP_BLEND
+            w = np.clip(w, 0.0, 1.0, dtype=np.float32)
+            if lvl == top:
+                w[lod[r0 + b0 : r0 + b1] >= top] = 1.0
+            if lvl == 0:
+                w[lod[r0 + b0 : r0 + b1] <= 0] = 1.0
+            rows_mix = np.s_[r0 + b0 : r0 + b1]
+            out[rows_mix] = cv2.blendLinear(out[rows_mix], img[b0:b1], acc[rows_mix], w)
+            acc[rows_mix] += w
     return cv2.cvtColor(out, cv2.COLOR_RGBA2RGB)
 
 

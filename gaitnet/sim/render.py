@@ -19,16 +19,18 @@ from __future__ import annotations
 
 import time
 import zlib
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from gaitnet.sim.floor import Clutter, ClutterBox, ClutterCylinder, FloorTexture
+from gaitnet.sim.render_draw import Frame, draw
+from gaitnet.sim.render_draw import antialias as antialias_edges
 from gaitnet.sim.render_env import ContactPatch, ShadowSegment, render_environment
 from gaitnet.sim.render_materials import (
     LightFrame,
+    ShoeTexture,
     shade_leg,
     shade_plain,
     shade_shoe,
@@ -40,10 +42,9 @@ from gaitnet.sim.render_prims import (
     T_WfromShoe,
     box_shape,
     geometry_of,
-    screen_bbox,
     upright_cylinder,
 )
-from gaitnet.sim.render_types import F32, Lighting, Rays, RenderResult, camera_rays
+from gaitnet.sim.render_types import F32, Lighting, RenderResult, camera_rays
 from gaitnet.sim.scene import (
     INSTANCE_LEFT,
     INSTANCE_NONE,
@@ -58,143 +59,119 @@ from gaitnet.sim.scene import (
 
 __all__ = ["Lighting", "RenderResult", "render_frame"]
 
-NEAR_M = 0.01
 _INSTANCE = {"left": INSTANCE_LEFT, "right": INSTANCE_RIGHT}
-
-
-@dataclass
-class _Frame:
-    """Mutable per-frame state: z-buffer and output maps, camera and lighting."""
-
-    K: np.ndarray
-    T_CfromW: np.ndarray
-    rays: Rays
-    lf: LightFrame
-    depth: F32
-    rgb: F32
-    label: NDArray[np.uint8]
-    instance: NDArray[np.uint8]
-    normals: F32 | None
-
-    @property
-    def size(self) -> tuple[int, int]:
-        return self.depth.shape[1], self.depth.shape[0]
-
-    def region(self, corners_C: np.ndarray) -> tuple[slice, slice] | None:
-        box = screen_bbox(self.K, corners_C, *self.size, near=NEAR_M)
-        if box is None:
-            return None
-        u0, u1, v0, v1 = box
-        return np.s_[v0:v1], np.s_[u0:u1]
-
-
-@dataclass(frozen=True)
-class _Hits:
-    """The winning hits of one primitive inside its region: mask, points, normals."""
-
-    region: tuple[slice, slice]
-    win: NDArray[np.bool_]
-    p: F32
-    view: F32
-
-
-def _resolve(fr: _Frame, region: tuple[slice, slice], t: F32) -> _Hits | None:
-    """Z-test ray distances ``t`` of a region against the buffer."""
-    dz = fr.rays.uz[region]
-    z = t * dz
-    win = (z < fr.depth[region]) & (z > NEAR_M)
-    if not win.any():
-        return None
-    d = np.stack([fr.rays.ux[region][win], fr.rays.uy[region][win], dz[win]], axis=1)
-    return _Hits(region, win, d * t[win][:, None], -d)
-
-
-def _write(fr: _Frame, hits: _Hits, rgb: F32, n: F32, label: int, instance: int) -> None:
-    """Write the winners' depth, colour, label, instance and normal (same mask for all)."""
-    r, w = hits.region, hits.win
-    fr.depth[r][w] = hits.p[:, 2]
-    fr.rgb[r][w] = rgb
-    fr.label[r][w] = label
-    fr.instance[r][w] = instance
-    if fr.normals is not None:
-        fr.normals[r][w] = n
-
-
-def _rays_of(fr: _Frame, region: tuple[slice, slice]) -> tuple[F32, F32, F32]:
-    return fr.rays.ux[region], fr.rays.uy[region], fr.rays.uz[region]
 
 
 # ----------------------------------------------------------------------------- primitives
 
 
-def _draw_convex(
-    fr: _Frame, shape_C: ConvexShape, shade: Callable[[F32, F32, F32], F32], label: int, inst: int
-) -> None:
-    region = fr.region(shape_C.bound)
-    if region is None:
-        return
-    t, which = shape_C.intersect(*_rays_of(fr, region))
-    hits = _resolve(fr, region, t)
-    if hits is None:
-        return
-    n = shape_C.normals(hits.p, which[hits.win])
-    _write(fr, hits, shade(hits.p, n, hits.view), n, label, inst)
+@dataclass(frozen=True)
+class _Clutter:
+    """A clutter box or cylinder (camera frame), plain Lambertian colour, background label."""
+
+    shape: ConvexShape
+    rgb: tuple[float, float, float]
+    lf: LightFrame
+    label: int = LABEL_BACKGROUND
+    instance: int = INSTANCE_NONE
+
+    @classmethod
+    def make(cls, item: Clutter, T_CfromW: np.ndarray, lf: LightFrame) -> _Clutter:
+        if isinstance(item, ClutterBox):
+            c, s = np.cos(item.yaw_rad), np.sin(item.yaw_rad)
+            R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+            half = np.asarray(item.size_m, float) / 2
+            shape = box_shape(np.array([*item.centre_xy, half[2]]), R, half)
+        else:
+            shape = upright_cylinder(item.centre_xy, item.radius_m, item.height_m)
+        return cls(shape.transformed(T_CfromW), item.rgb, lf)
+
+    def corners(self) -> np.ndarray:
+        return self.shape.bound
+
+    def trace(self, dx: F32, dy: F32, dz: F32) -> tuple[F32, NDArray[np.int8]]:
+        return self.shape.intersect(dx, dy, dz)
+
+    def edge_id(self, code: NDArray[np.int8]) -> NDArray[np.int8]:
+        return code
+
+    def shade(self, p: F32, code: NDArray[np.int8], view: F32) -> tuple[F32, F32]:
+        n = self.shape.normals(p, code)
+        return shade_plain(self.rgb, n, self.lf), n
 
 
-def _draw_clutter(fr: _Frame, item: Clutter) -> None:
-    if isinstance(item, ClutterBox):
-        c, s = np.cos(item.yaw_rad), np.sin(item.yaw_rad)
-        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        half = np.asarray(item.size_m, float) / 2
-        shape = box_shape(np.array([*item.centre_xy, half[2]]), R, half)
-    else:
-        shape = upright_cylinder(item.centre_xy, item.radius_m, item.height_m)
-    rgb = item.rgb
-    _draw_convex(
-        fr,
-        shape.transformed(fr.T_CfromW),
-        lambda p, n, v: shade_plain(rgb, n, fr.lf),
-        LABEL_BACKGROUND,
-        INSTANCE_NONE,
-    )
+@dataclass(frozen=True)
+class _Leg:
+    """A trouser-leg segment (round cone, camera frame)."""
+
+    cone: RoundCone
+    lf: LightFrame
+    appearance: Appearance
+    seed: int
+    instance: int
+    label: int = LABEL_LEG
+
+    def corners(self) -> np.ndarray:
+        return self.cone.corners()
+
+    def trace(self, dx: F32, dy: F32, dz: F32) -> tuple[F32, NDArray[np.int8]]:
+        return self.cone.intersect(dx, dy, dz)
+
+    def edge_id(self, code: NDArray[np.int8]) -> NDArray[np.int8]:
+        return np.zeros_like(code)
+
+    def shade(self, p: F32, code: NDArray[np.int8], view: F32) -> tuple[F32, F32]:
+        n = self.cone.normals(p, code)
+        return shade_leg(self.cone, p, n, view, self.lf, self.appearance, self.seed), n
 
 
-def _draw_leg(fr: _Frame, cone_W: RoundCone, side: str, appearance: Appearance, seed: int) -> None:
-    cone = cone_W.transformed(fr.T_CfromW)
-    region = fr.region(cone.corners())
-    if region is None:
-        return
-    t, part = cone.intersect(*_rays_of(fr, region))
-    hits = _resolve(fr, region, t)
-    if hits is None:
-        return
-    n = cone.normals(hits.p, part[hits.win])
-    rgb = shade_leg(cone, hits.p, n, fr.lf, appearance, seed)
-    _write(fr, hits, rgb, n, LABEL_LEG, _INSTANCE[side])
+_UPPER = 16  # shoe surface codes: sole constraint k, or _UPPER + upper constraint k
 
 
-def _draw_shoe(fr: _Frame, shoe: ShoeState, appearance: Appearance) -> None:
-    geo = geometry_of(shoe)
-    T_CfromS = fr.T_CfromW @ T_WfromShoe(shoe)
-    sole, upper = geo.sole.transformed(T_CfromS), geo.upper.transformed(T_CfromS)
-    region = fr.region(sole.bound)
-    if region is None:
-        return
-    rays = _rays_of(fr, region)
-    t_sole, w_sole = sole.intersect(*rays)
-    t_up, w_up = upper.intersect(*rays)
-    is_up = t_up < t_sole
-    hits = _resolve(fr, region, np.where(is_up, t_up, t_sole))
-    if hits is None:
-        return
-    up = is_up[hits.win]
-    n = np.empty_like(hits.p)
-    n[up] = upper.normals(hits.p[up], w_up[hits.win][up])
-    n[~up] = sole.normals(hits.p[~up], w_sole[hits.win][~up])
-    p_S = ((hits.p - T_CfromS[:3, 3]) @ T_CfromS[:3, :3]).astype(np.float32)
-    tex = shoe_texture(float(shoe.length_m), float(shoe.width_m), shoe.side, appearance)
-    rgb = shade_shoe(p_S, n, fr.lf, hits.view, tex, geo.sole_m, appearance)
-    _write(fr, hits, rgb, n, LABEL_FOOT, _INSTANCE[shoe.side])
+@dataclass(frozen=True)
+class _Shoe:
+    """A shoe: union of its sole and upper (camera frame)."""
+
+    sole: ConvexShape
+    upper: ConvexShape
+    T_CfromS: np.ndarray
+    sole_m: float
+    tex: ShoeTexture
+    lf: LightFrame
+    appearance: Appearance
+    instance: int
+    label: int = LABEL_FOOT
+
+    @classmethod
+    def make(cls, shoe: ShoeState, T_CfromW: np.ndarray, lf: LightFrame, app: Appearance) -> _Shoe:
+        geo = geometry_of(shoe)
+        T_CfromS = T_CfromW @ T_WfromShoe(shoe)
+        tex = shoe_texture(float(shoe.length_m), float(shoe.width_m), shoe.side, app)
+        sole, upper = geo.sole.transformed(T_CfromS), geo.upper.transformed(T_CfromS)
+        return cls(sole, upper, T_CfromS, geo.sole_m, tex, lf, app, _INSTANCE[shoe.side])
+
+    def corners(self) -> np.ndarray:
+        return self.sole.bound
+
+    def trace(self, dx: F32, dy: F32, dz: F32) -> tuple[F32, NDArray[np.int8]]:
+        t_sole, w_sole = self.sole.intersect(dx, dy, dz)
+        t_up, w_up = self.upper.intersect(dx, dy, dz)
+        is_up = t_up < t_sole
+        code = np.where(is_up, w_up + _UPPER, w_sole).astype(np.int8)
+        return np.where(is_up, t_up, t_sole), code
+
+    def edge_id(self, code: NDArray[np.int8]) -> NDArray[np.int8]:
+        return (code >= _UPPER).astype(np.int8)
+
+    def shade(self, p: F32, code: NDArray[np.int8], view: F32) -> tuple[F32, F32]:
+        up = code >= _UPPER
+        n = np.empty_like(p)
+        n[up] = self.upper.normals(p[up], code[up] - _UPPER)
+        n[~up] = self.sole.normals(p[~up], code[~up])
+        T = self.T_CfromS
+        p_S = ((p - T[:3, 3]) @ T[:3, :3]).astype(np.float32)
+        rgb = shade_shoe(p_S, n, self.lf, view, self.tex, self.sole_m, self.appearance)
+        return rgb, n
 
 
 # ----------------------------------------------------------------------------- shadows
@@ -248,13 +225,16 @@ def render_frame(
     light: Lighting | None = None,
     *,
     return_normals: bool = False,
+    antialias: bool = True,
     timings: dict[str, float] | None = None,
 ) -> RenderResult:
     """Render one frame seen by a camera with matrix ``K`` at pose ``T_WfromC`` (module doc).
 
-    ``timings``, when given, receives the CPU seconds of the calling thread spent per stage
-    (``environment``, ``clutter``, ``legs``, ``shoes``), accumulated over calls (CPU time, so
-    that other processes on the machine do not inflate them).
+    ``antialias`` refines the colour of silhouette pixels with 4 sub-pixel rays (depth,
+    labels and instances stay point-sampled). ``timings``, when given, receives the CPU
+    seconds of the calling thread spent per stage (``environment``, ``clutter``, ``legs``,
+    ``shoes``, ``antialias``), accumulated over calls (CPU time, so that other processes on
+    the machine do not inflate them).
     """
     clock = _Clock(timings)
     light = light or Lighting()
@@ -264,11 +244,11 @@ def render_frame(
     shadows, patches = _occluders(body, tuple(clutter), light)
     env = render_environment(K, width, height, T_WfromC, floor, light, shadows, patches)
     clock.lap("environment")
-    fr = _Frame(
+    lf = LightFrame.make(light, T_CfromW[:3, :3])
+    env_rgb = env.rgb.copy() if antialias else env.rgb
+    fr = Frame(
         K=K,
-        T_CfromW=T_CfromW,
         rays=camera_rays(K, width, height),
-        lf=LightFrame.make(light, T_CfromW[:3, :3]),
         depth=env.depth,
         rgb=env.rgb,
         label=np.zeros((height, width), np.uint8),
@@ -276,15 +256,19 @@ def render_frame(
         normals=_env_normals(env, T_CfromW) if return_normals else None,
     )
     for item in clutter:
-        _draw_clutter(fr, item)
+        draw(fr, _Clutter.make(item, T_CfromW, lf))
     clock.lap("clutter")
     seed = zlib.crc32(repr(appearance.trouser_rgb).encode())
     for leg in body.legs:
-        _draw_leg(fr, RoundCone.from_leg(leg), leg.side, appearance, seed)
+        cone = RoundCone.from_leg(leg).transformed(T_CfromW)
+        draw(fr, _Leg(cone, lf, appearance, seed, _INSTANCE[leg.side]))
     clock.lap("legs")
     for shoe in body.shoes:
-        _draw_shoe(fr, shoe, appearance)
+        draw(fr, _Shoe.make(shoe, T_CfromW, lf, appearance))
     clock.lap("shoes")
+    if antialias:
+        antialias_edges(fr, env_rgb)
+        clock.lap("antialias")
     return RenderResult(fr.rgb, fr.depth, fr.label, fr.instance, fr.normals)
 
 

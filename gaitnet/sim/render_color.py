@@ -1,10 +1,8 @@
 """Colour encodings shared by the floor textures, the renderer and the sensor model.
 
 Textures are stored 8-bit sRGB-encoded (like image files, 4× less memory than float) and turned
-into linear radiance with a 256-entry table after sampling. The sensor model goes back to sRGB
-fast through the square-root domain: ``sqrt(linear)`` rounded to 8 bits, then a 256-entry table
-to the sRGB code (within one code of the exact encoding). Tables use the exact sRGB transfer
-function (IEC 61966-2-1).
+into linear radiance with a 256-entry table after sampling; :func:`encode_srgb8` goes back
+through a 4096-level table. Tables use the exact sRGB transfer function (IEC 61966-2-1).
 """
 
 from __future__ import annotations
@@ -47,20 +45,9 @@ def decode_srgb8(
     return cv2.LUT(np.ascontiguousarray(img), lut)
 
 
-# uint8 code of sqrt(linear) -> uint8 sRGB code.
-SQRT_TO_SRGB_LUT = np.round(255.0 * linear_to_srgb((np.arange(256) / 255.0) ** 2)).astype(np.uint8)
-
-
 def encode_srgb8(linear: NDArray) -> NDArray[np.uint8]:
     """Linear image (values clipped to [0, 1]) -> uint8 sRGB, via a 4096-level table."""
     scaled = np.asarray(linear, dtype=np.float32) * np.float32(ENCODE_LEVELS - 1)
     np.clip(scaled, 0.0, ENCODE_LEVELS - 1, out=scaled)
     idx = (scaled + np.float32(0.5)).astype(np.uint16)
     return ENCODE_LUT[idx]
-
-
-def encode_srgb8_fast(linear: NDArray[np.float32]) -> NDArray[np.uint8]:
-    """Like :func:`encode_srgb8` (±1 code) but ~4× faster: via the square-root domain."""
-    root = cv2.sqrt(np.maximum(np.asarray(linear, np.float32), np.float32(0.0)))
-    code = cv2.convertScaleAbs(root, alpha=255.0)
-    return cv2.LUT(code, SQRT_TO_SRGB_LUT).reshape(np.shape(linear))

@@ -140,19 +140,22 @@ def _lod(co: _Coarse, texel: float, cz: float, size: tuple[int, int]) -> F32:
     rays = co.cam.rays
     n2 = rays.xn**2 + rays.yn**2 + 1.0
     f = 0.5 * (co.cam.K[0, 0] + co.cam.K[1, 1]) * LOW_RES
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore"):
         lod = np.log2(max(cz, 1e-3) / (f * texel)) + 0.75 * np.log2(n2) - 1.5 * np.log2(-co.D[2])
     lod = np.nan_to_num(lod + LOD_BIAS, nan=30.0, posinf=30.0).astype(np.float32)
     return cv2.resize(lod, size, interpolation=cv2.INTER_LINEAR)
 
 
-def _lamp_profile(x: F32, light: Lighting, sigma: F32 | float) -> F32:
-    """Brightness of the ceiling-lamp rows at ceiling coordinate ``x`` blurred by ``sigma``."""
+def _lamp_profile(x: F32, y: F32, light: Lighting, sigma: F32 | float) -> F32:
+    """Brightness of the ceiling lamps at ceiling point (x, y) blurred by ``sigma``: Gaussian
+    across a lamp (energy-preserving), a soft-edged box along it."""
     s = np.float32(light.lamp_spacing_m)
     d = np.mod(x - np.float32(light.lamp_offset_m) + s / 2, s) - s / 2
     half = np.float32(light.lamp_width_m / 2)
     sig = np.maximum(sigma, half)
-    return np.exp(-0.5 * (d / sig) ** 2) * (half / sig)
+    across = np.exp(-0.5 * (d / sig) ** 2) * (half / sig)
+    along = np.abs(y - np.float32(light.lamp_y_m)) - np.float32(light.lamp_length_m / 2)
+    return across * np.clip(0.5 - along / (2 * sig), 0.0, 1.0)
 
 
 def _shadow(px: F32, py: F32, seg: ShadowSegment, light: Lighting, l_W: np.ndarray) -> F32:
@@ -240,8 +243,13 @@ def _floor_specular(co: _Coarse, floor: FloorTexture, light: Lighting) -> F32:
     fresnel = 0.04 + 0.96 * (1 - cos) ** 5
     travel = np.float32(hc) / cos  # floor to ceiling along the mirrored ray
     xc = co.px + D[0] / norm * travel
-    sigma = np.float32(0.02) + np.float32(0.12 * (1.0 - floor.gloss)) * travel
-    spec = np.float32(floor.gloss * light.lamp_radiance) * fresnel * _lamp_profile(xc, light, sigma)
+    yc = co.py + D[1] / norm * travel
+    sigma = np.float32(0.02) + np.float32(0.06 * (1.0 - floor.gloss)) * travel
+    spec = (
+        np.float32(floor.gloss * light.lamp_radiance)
+        * fresnel
+        * _lamp_profile(xc, yc, light, sigma)
+    )
     return np.where(D[2] < 0, spec, 0.0).astype(np.float32)
 
 
@@ -268,9 +276,8 @@ def _sheet_overlay(
 
 def _composite_sheets(
     cam: _Camera, floor: FloorTexture, t: F32, lod: F32, albedo: F32, light_rgb: tuple
-) -> NDArray[np.bool_]:
-    """Paste the tag sheets into ``albedo`` in place; returns the mask of sheet pixels."""
-    on_sheet = np.zeros(t.shape, bool)
+) -> None:
+    """Paste the tag sheets into ``albedo`` in place."""
     R, c = cam.T_WfromC[:3, :3].astype(np.float32), cam.centre.astype(np.float32)
     for sheet in floor.sheets:
         (sx0, sx1), (sy0, sy1) = sheet.extent_b
@@ -285,20 +292,18 @@ def _composite_sheets(
         colour, inside = _sheet_overlay(sheet, x, y, lod[reg], floor.texel_m, light_rgb)
         inside &= np.isfinite(tt)
         albedo[reg][inside] = colour[inside]
-        on_sheet[reg] |= inside
-    return on_sheet
 
 
 # ----------------------------------------------------------------------------- room
 
 
 def _room_rows(co: _Coarse, floor: FloorTexture, height: int) -> int:
-    """Number of top image rows in which a wall or the ceiling can be nearer than the floor."""
+    """Number of top image rows in which a wall or the ceiling can be nearer than the floor:
+    the room is a convex box around the camera, so only rays whose floor point lies outside
+    the floor's extent (or that miss the floor) leave it through a wall or the ceiling."""
     (x0, x1), (y0, y1) = floor.extent_xy
-    c = co.cam.centre
-    d_min = min(c[0] - x0, x1 - c[0], c[1] - y0, y1 - c[1])
-    horiz = co.t * np.sqrt(co.D[0] ** 2 + co.D[1] ** 2)
-    rows = np.flatnonzero((horiz > np.float32(0.9 * d_min)).any(axis=1))
+    out = (co.px <= x0) | (co.px >= x1) | (co.py <= y0) | (co.py >= y1) | (co.t >= FAR_T)
+    rows = np.flatnonzero(out.any(axis=1))
     return 0 if rows.size == 0 else min(height, (int(rows[-1]) + 2) * LOW_RES)
 
 
@@ -331,7 +336,7 @@ def _shade_room(
     grad = 1.0 - 0.15 * np.clip(p[:, 2] / np.float32(hc), 0, 1)
     col = albedo * (irr * grad)[:, None]
     ceil_irr = np.float32(light.ambient * (1 - light.ambient_down_loss))
-    lamps = _lamp_profile(p[:, 0], light, 0.0) > 0.6
+    lamps = _lamp_profile(p[:, 0], p[:, 1], light, 0.0) > 0.6
     ceil_col = np.where(lamps[:, None], np.float32(light.lamp_radiance), 0.8 * ceil_irr)
     col = np.where((face == 2)[:, None], ceil_col, col)
     return (col * np.asarray(light.rgb, np.float32)).astype(np.float32)
@@ -398,14 +403,12 @@ def render_environment(
     co = _coarse(cam)
     lod = _lod(co, floor.texel_m, float(c[2]), (width, height))
     rgb = decode_srgb8(sample_mipmapped(floor.levels, mx, my, lod), light.rgb)
-    on_sheet = _composite_sheets(cam, floor, depth, lod, rgb, light.rgb)
+    _composite_sheets(cam, floor, depth, lod, rgb, light.rgb)
     irr = cv2.resize(_floor_irradiance(co, light, shadows, patches), (width, height))
     np.multiply(rgb, irr[..., None], out=rgb)
     if floor.gloss > 0:
         spec = _floor_specular(co, floor, light)[..., None] * np.asarray(light.rgb, np.float32)
         spec = cv2.resize(spec, (width, height))
-        if on_sheet.any():
-            spec[on_sheet] *= 0.2
         np.add(rgb, spec, out=rgb)
     if not _paint_room(cam, co, floor, light, (depth, rgb, is_floor)):
         sky = ~is_floor

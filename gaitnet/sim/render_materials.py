@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 
 from gaitnet.sim.render_prims import RoundCone
-from gaitnet.sim.render_types import F32, Lighting
+from gaitnet.sim.render_types import F32, Lighting, normalize_rows, rowdot
 from gaitnet.sim.scene import Appearance
 
 FABRIC_N = 256
@@ -96,9 +96,10 @@ def fabric_texture(seed: int) -> F32:
 
 
 def shade_leg(
-    cone: RoundCone, p: F32, n: F32, lf: LightFrame, appearance: Appearance, seed: int
+    cone: RoundCone, p: F32, n: F32, view: F32, lf: LightFrame, appearance: Appearance, seed: int
 ) -> F32:
-    """Linear colour (N, 3) of trouser points ``p`` with normals ``n`` (camera frame).
+    """Linear colour (N, 3) of trouser points ``p`` with normals ``n`` and unit view
+    directions ``view`` (camera frame).
 
     The fabric wraps around the axis with the seam (angle ±π) at the back of the leg, the
     front being world +x (the walking direction at the start of a walk).
@@ -117,13 +118,9 @@ def shade_leg(
     cols = ((theta + np.float32(np.pi)) * np.float32(FABRIC_N / (2 * np.pi))).astype(np.float32)
     mult = remap_points(fabric_texture(seed), cols, rows, cv2.BORDER_WRAP)
     irr = irradiance(n, lf)
-    rim = np.float32(0.12 * lf.light.key) * (1 - np.abs((n * _unit(-p)).sum(axis=1))) ** 3
+    grazing = 1 - np.abs(rowdot(n, view))
     albedo = np.asarray(appearance.trouser_rgb, np.float32) * lf.rgb
-    return albedo[None] * (mult * irr + rim)[:, None]
-
-
-def _unit(v: F32) -> F32:
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+    return albedo[None] * (mult * irr * (1 - 0.3 * grazing * grazing))[:, None]
 
 
 # ----------------------------------------------------------------------------- shoes
@@ -264,9 +261,9 @@ def shade_shoe(
     in_sole = (z < np.float32(sole_m))[:, None]
     albedo = np.where(in_sole, sole[None] * groove[:, None], albedo)
     irr = irradiance(n, lf)
-    half = _unit(view + lf.l_C[None])
+    half = normalize_rows(view + lf.l_C[None])
     gloss = np.where(in_sole[:, 0], 0.02, 0.07).astype(np.float32)
-    spec = gloss * np.maximum((n * half).sum(axis=1), 0) ** 40 * np.float32(lf.light.key)
+    spec = gloss * np.maximum(rowdot(n, half), 0) ** 40 * np.float32(lf.light.key)
     return (albedo * irr[:, None] + spec[:, None]) * lf.rgb
 
 

@@ -28,6 +28,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
+from gaitnet.sim.render_types import normalize_rows
 from gaitnet.sim.scene import LegSegment, ShoeState
 
 F32 = NDArray[np.float32]
@@ -157,7 +158,7 @@ class RoundCone:
         on_a, on_b = part == 1, part == 2
         n[on_a] = q[on_a]
         n[on_b] = p[on_b] - b
-        return n / np.linalg.norm(n, axis=1, keepdims=True)
+        return normalize_rows(n)
 
     def sdf(self, p: np.ndarray) -> np.ndarray:
         """Exact signed distance (Quilez's sdRoundCone) at points ``p`` (..., 3), float64."""
@@ -224,7 +225,7 @@ class Quadric:
     def normals(self, p: F32) -> F32:
         A = self.A.astype(np.float32)
         g = ((p - self.c.astype(np.float32)) @ A.T) @ A
-        return g / np.linalg.norm(g, axis=1, keepdims=True)
+        return normalize_rows(g)
 
     def sdf(self, p: np.ndarray) -> np.ndarray:
         """First-order signed distance (exact sign, zero on the surface), float64."""
@@ -367,7 +368,7 @@ def shoe_geometry(length: float, width: float, height: float, side: str) -> Shoe
     hs = sole_thickness(height)
     xc, ax = -0.15 * length, 0.68 * length
     az = height / np.sqrt(1.0 - (xc / ax) ** 2)
-    dome = Quadric(np.diag([1.0 / ax, 1.0 / (0.56 * width), 1.0 / az]), np.array([xc, 0.0, 0.0]))
+    dome = Quadric(np.diag([1.0 / ax, 1.0 / (0.7 * width), 1.0 / az]), np.array([xc, 0.0, 0.0]))
     half = np.array([0.5 * length, 0.6 * width, 0.5 * height * 1.05])
     bound = box_corners(np.array([0.0, 0.0, half[2]]), np.eye(3), half)
     sole = ConvexShape(_slab_planes(0.0, hs), bound, shoe_outline_cylinders(length, width, medial))

@@ -9,6 +9,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 F32 = NDArray[np.float32]
+_ONES3 = np.ones(3, np.float32)
+
+
+def rowdot(a: F32, b: F32) -> F32:
+    """Row-wise dot products of (N, 3) arrays (a matrix product: ~10× faster than
+    ``(a * b).sum(axis=1)`` in numpy)."""
+    return (a * b) @ _ONES3
+
+
+def normalize_rows(a: F32) -> F32:
+    """Rows of an (N, 3) array scaled to unit length."""
+    return a / np.sqrt(rowdot(a, a))[:, None]
 
 
 @dataclass(frozen=True)
@@ -22,9 +34,10 @@ class Lighting:
     * ``key``, ``ambient``: key-light and ambient irradiance; surfaces facing down get
       ``ambient · (1 − ambient_down_loss)``.
     * ``rgb``: colour of the light (multiplies everything lit).
-    * ``lamp_spacing_m``, ``lamp_offset_m``, ``lamp_width_m``: strip lamps across the room
-      (along y) at x = offset + k·spacing on the ceiling; ``lamp_variation`` is the relative
-      floor irradiance swing they cause; ``lamp_radiance`` their brightness when seen (on the
+    * ``lamp_spacing_m``, ``lamp_offset_m``, ``lamp_width_m``, ``lamp_length_m``: a row of
+      ceiling lamps (width along x, length along y, centred on y = ``lamp_y_m``) at
+      x = offset + k·spacing; ``lamp_variation`` is the relative floor irradiance swing they
+      cause; ``lamp_radiance`` their brightness when seen (on the
       ceiling or mirrored in a glossy floor).
     * ``shadow_strength``, ``shadow_softness``: darkening under the soft key-light shadows of
       legs and shoes, and how fast the penumbra widens per metre of occluder height.
@@ -32,15 +45,17 @@ class Lighting:
     * ``background_rgb``: what a ray that hits nothing sees (no room, looking up).
     """
 
-    direction_W: tuple[float, float, float] = (0.25, 0.15, 1.0)
-    key: float = 0.55
-    ambient: float = 0.45
-    ambient_down_loss: float = 0.5
+    direction_W: tuple[float, float, float] = (-0.3, 0.2, 1.0)
+    key: float = 0.6
+    ambient: float = 0.4
+    ambient_down_loss: float = 0.65
     rgb: tuple[float, float, float] = (1.0, 0.97, 0.92)
     lamp_spacing_m: float = 2.4
     lamp_offset_m: float = 0.0
-    lamp_width_m: float = 0.25
-    lamp_variation: float = 0.18
+    lamp_width_m: float = 0.3
+    lamp_length_m: float = 1.2
+    lamp_y_m: float = 0.0
+    lamp_variation: float = 0.25
     lamp_radiance: float = 3.0
     shadow_strength: float = 0.45
     shadow_softness: float = 0.35
