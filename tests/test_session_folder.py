@@ -178,6 +178,9 @@ def test_writer_is_atomic_and_refuses_to_clobber(tmp_path: Path) -> None:
     make_tiny_session(root)
     with pytest.raises(SessionError, match="output exists and is not empty"):
         make_tiny_session(root)
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(SessionError, match="exists and is not a folder"):
+        SessionWriter(tmp_path / "file", tiny_calibration(), overwrite=True)
 
 
 def test_open_session_rejects_unknown_path(tmp_path: Path) -> None:

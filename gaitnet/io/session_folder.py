@@ -152,7 +152,9 @@ class SessionWriter:
     def __init__(self, root: str | Path, calibration: SessionCalibration, overwrite: bool = False):
         self.root = Path(root)
         self.calibration = calibration
-        occupied = self.root.exists() and (not self.root.is_dir() or any(self.root.iterdir()))
+        if self.root.exists() and not self.root.is_dir():
+            raise SessionError(f"{self.root}: output path exists and is not a folder")
+        occupied = self.root.is_dir() and any(self.root.iterdir())
         if occupied and not overwrite:
             raise SessionError(
                 f"{self.root}: output exists and is not empty "

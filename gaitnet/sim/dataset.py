@@ -70,6 +70,8 @@ def simulate_dataset(
     if n_frames < 1:
         raise ValueError("n_frames must be at least 1")
     out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise SessionError(f"{out_dir}: output path exists and is not a folder")
     if out_dir.exists() and any(out_dir.iterdir()) and not overwrite:
         raise SessionError(f"{out_dir}: output exists and is not empty")
     staging = out_dir.parent / f".{out_dir.name}.partial"
