@@ -97,19 +97,18 @@ def test_imu_at_rest_reads_gravity_up() -> None:
     np.testing.assert_allclose(samples.gyro, 0.0, atol=1e-12)
 
 
-def test_noise_statistics_match_the_densities() -> None:
-    def still(t):
-        n = len(np.atleast_1d(t))
-        return (
-            np.repeat(np.eye(3)[None], n, 0),
-            np.zeros((n, 3)),
-            np.zeros((n, 3)),
-            np.zeros((n, 3)),
-            np.zeros((n, 3)),
-        )
+def still_identity(t):
+    """A pelvis at rest at the origin with the identity attitude."""
+    n = len(np.atleast_1d(t))
+    zeros = np.zeros((n, 3))
+    return np.repeat(np.eye(3)[None], n, 0), zeros, zeros, zeros, zeros
 
+
+def test_noise_statistics_match_the_densities() -> None:
     cfg = ImuConfig(gyro_bias_random_walk=0.0, accel_bias_random_walk=0.0)
-    samples, truth = simulate_imu(still, np.eye(4), 0.0, 200.0, cfg, np.random.default_rng(3))
+    samples, truth = simulate_imu(
+        still_identity, np.eye(4), 0.0, 200.0, cfg, np.random.default_rng(3)
+    )
     gyro_noise = samples.gyro - truth.gyro_bias
     accel_noise = samples.accel - truth.specific_force - truth.accel_bias
     expected_g = cfg.gyro_noise_density * np.sqrt(cfg.rate_hz)
@@ -121,20 +120,12 @@ def test_noise_statistics_match_the_densities() -> None:
 
 
 def test_bias_random_walk_grows_with_sqrt_time() -> None:
-    def still(t):
-        n = len(np.atleast_1d(t))
-        return (
-            np.repeat(np.eye(3)[None], n, 0),
-            np.zeros((n, 3)),
-            np.zeros((n, 3)),
-            np.zeros((n, 3)),
-            np.zeros((n, 3)),
-        )
-
     cfg = ImuConfig(gyro_initial_bias_std=0.0, accel_initial_bias_std=0.0)
     ends = []
     for seed in range(200):
-        _, truth = simulate_imu(still, np.eye(4), 0.0, 4.0, cfg, np.random.default_rng(seed))
+        _, truth = simulate_imu(
+            still_identity, np.eye(4), 0.0, 4.0, cfg, np.random.default_rng(seed)
+        )
         ends.append(truth.gyro_bias[-1])
     std = np.std(ends)
     assert abs(std / (cfg.gyro_bias_random_walk * 2.0) - 1.0) < 0.15
