@@ -123,14 +123,20 @@ def test_bone_lengths_constant_and_legs_reachable(walk, t):
     assert hip_ankle.max() <= REACH_FRACTION * walk.subject.leg_length_m + 1e-9
 
 
-def test_knee_flexion_range_and_direction(walk, t):
-    J = walk.joints(t)
-    R_WP, _ = walk.pelvis_pose(t)
+def _knee_flexion(w: Walk, t: np.ndarray) -> np.ndarray:
+    """Knee flexion [deg] (n, 2): the angle between thigh and shank."""
+    J = w.joints(t)
     thigh, shank = J[:, 3:5] - J[:, 1:3], J[:, 5:7] - J[:, 3:5]
     cos = (
         np.sum(thigh * shank, -1) / np.linalg.norm(thigh, axis=-1) / np.linalg.norm(shank, axis=-1)
     )
-    flexion = np.degrees(np.arccos(np.clip(cos, -1, 1)))
+    return np.degrees(np.arccos(np.clip(cos, -1, 1)))
+
+
+def test_knee_flexion_range_and_direction(walk, t):
+    J = walk.joints(t)
+    R_WP, _ = walk.pelvis_pose(t)
+    flexion = _knee_flexion(walk, t)
     assert flexion.min() >= 0.0 and flexion.max() <= 75.0
     assert flexion.max() >= 50.0  # the swing knee really bends
     # The knee lies in front of the hip–ankle line (along the pelvis forward axis).
@@ -233,12 +239,53 @@ def test_pelvis_excursions_and_speed(walk, t):
     m = _steady(walk, t)
     hs = walk.steps.hs_s
     per_step = [np.ptp(p[(t >= hs[k]) & (t < hs[k + 1]), 2]) for k in range(2, len(hs) - 3)]
-    assert min(per_step) >= 0.02 and max(per_step) <= 0.06
+    assert min(per_step) >= 0.025 and max(per_step) <= 0.06  # textbook 4–5 cm
     assert 0.02 <= np.ptp(p[m, 1]) <= 0.06  # lateral sway (straight walk along x)
     yaw = np.degrees(np.arctan2(R[m, 1, 0], R[m, 0, 0]))
     assert 2.0 <= yaw.max() <= 6.0 and -6.0 <= yaw.min() <= -2.0
     speed = (p[m, 0][-1] - p[m, 0][0]) / (t[m][-1] - t[m][0])
     assert abs(speed - walk.config.speed_mps) < 0.1 * walk.config.speed_mps
+
+
+def _knee_cycles(w: Walk, t: np.ndarray) -> dict[str, np.ndarray]:
+    """Knee flexion [deg] at gait events of the steady strides of both legs.
+
+    Per stride (heel strike to the next one of the same foot): at heel strike, the
+    loading-response peak (first 25 % of the cycle), the mid/terminal-stance minimum (15–50 %),
+    at toe off and the swing peak.
+    """
+    knee = _knee_flexion(w, t)
+    out: dict[str, list[float]] = {k: [] for k in ("hs", "loading", "mid", "to", "swing")}
+    for i, side in enumerate(SIDES):
+        ev = w.events[side]
+        for k in range(2, len(ev.hs_s) - 2):
+            phase = (t - ev.hs_s[k]) / (ev.hs_s[k + 1] - ev.hs_s[k])
+            cycle = (phase >= 0.0) & (phase < 1.0)
+            out["hs"].append(knee[np.argmin(np.abs(phase)), i])
+            out["loading"].append(knee[cycle & (phase < 0.25), i].max())
+            out["mid"].append(knee[cycle & (phase > 0.15) & (phase < 0.5), i].min())
+            out["to"].append(knee[np.argmin(np.abs(t - ev.to_s[k])), i])
+            out["swing"].append(knee[cycle, i].max())
+    assert len(out["hs"]) >= 6
+    return {k: np.array(v) for k, v in out.items()}
+
+
+def test_stance_knee_follows_textbook(walk, t):
+    """Knee ≈ 0–5° at heel strike, 15–20° in loading response, ≈ 0–5° in mid/terminal stance,
+    35–40° at toe off, 60–65° in swing (references.md), with some tolerance."""
+    c = _knee_cycles(walk, t)
+    assert c["hs"].max() <= 8.0
+    assert c["loading"].min() >= 10.0 and c["loading"].max() <= 25.0
+    assert c["mid"].max() <= 8.0
+    assert c["to"].min() >= 30.0 and c["to"].max() <= 45.0
+    assert c["swing"].min() >= 50.0 and c["swing"].max() <= 70.0
+    # loading response is a real flexion wave, not a knee that stays bent
+    assert np.all(c["loading"] - np.maximum(c["hs"], c["mid"]) >= 5.0)
+
+
+def test_standing_knees_nearly_straight(walk):
+    stand = _knee_flexion(walk, np.array([0.0, walk.duration_s]))
+    assert stand.max() <= 6.0  # textbook: standing straight-legged
 
 
 def test_turn_changes_heading(turning):

@@ -2,9 +2,10 @@
 
 :func:`generate_walk` plans the footsteps (:mod:`gaitnet.sim.gait_plan`), builds each shoe's
 trajectory with heel and toe rockers and a C² swing (:mod:`gaitnet.sim.gait_feet`), a C²+
-pelvis trajectory whose height keeps both ankles within reach (:mod:`gaitnet.sim.gait_pelvis`),
-and places the knees by two-link IK (:mod:`gaitnet.sim.gait_legs`). The returned :class:`Walk`
-evaluates everything at arbitrary times.
+pelvis trajectory whose height follows designed stance-knee angles and keeps both ankles
+within reach (:mod:`gaitnet.sim.gait_pelvis`), and places the knees by two-link IK
+(:mod:`gaitnet.sim.gait_legs`). The returned :class:`Walk` evaluates everything at arbitrary
+times.
 
 Conventions:
 - world: z up, floor z = 0, the walk starts at x ≈ 0 heading +x, left foot at +y;
@@ -21,9 +22,20 @@ Step length from speed: ``step = ratio · H · (v / 1.3 m/s)^exponent`` with rat
 often-quoted "step ≈ 0.41 H" at a normal 1.3 m/s) and exponent 0.5, so a 1.75 m subject at
 1.2–1.4 m/s walks at about 105–115 steps/min with 1.35–1.45 m strides.
 
+Knees (textbook values, /work/shared/docs/references.md): the pelvis height is derived from
+the legs, not the other way round. The leg that carries the body has a designed knee flexion
+— ``knee_extended_deg`` (3°) at heel strike and in mid-stance, a ``knee_loading_deg`` (17°)
+loading-response peak at 13 % of the cycle — and the pelvis height is the smooth curve closest
+to the heights at which the legs have those angles (:func:`gait_pelvis.stance_knee`); the
+swing knee, the trailing knee in pre-swing and every knee angle then follow by IK. Standing,
+both knees are at ``knee_extended_deg``. ``REACH_FRACTION`` (knee ≥ about 1°) only guards the
+IK. For a 1.75 m subject at 1.3 m/s this gives a knee of about 5–7° at heel strike, 18° in
+loading response, 5° in mid-stance, 38° at toe off and 60° in swing, and a pelvis vertical
+excursion of 3–4.5 cm per step.
+
 Heel off adapts to the legs: it moves earlier (down to ``min_heel_off_fraction`` of the cycle)
-when the stance leg would otherwise run out of reach, as a real heel rises when the leg is
-straight. The pelvis height then follows :mod:`gaitnet.sim.gait_pelvis`.
+when the trailing leg would otherwise run out of reach of the desired pelvis height, as a real
+heel rises when the leg is straight.
 """
 
 from __future__ import annotations
@@ -41,13 +53,14 @@ from gaitnet.sim.gait_pelvis import (
     PelvisGrid,
     PelvisParams,
     PelvisTrajectory,
+    StanceKnee,
     build_pelvis,
-    lower_to_fit,
+    design_heights,
+    fit_height,
     motion_end_time,
-    nominal_height,
     pelvis_grid,
     reach_bounds,
-    standing_height,
+    stance_knee,
 )
 from gaitnet.sim.gait_plan import FootStance, StepPlan, WalkPath, plan_steps
 from gaitnet.sim.scene import SIDES, BodyState, LegSegment, ShoeState, Side
@@ -64,14 +77,22 @@ __all__ = [
 
 DEG = np.pi / 180.0
 REFERENCE_SPEED_MPS = 1.3
-REACH_FRACTION = 0.995  # hip–ankle distance ≤ this × (thigh + shank)
-_HEEL_RISE_MARGIN_M = 0.006  # the heel rises while the leg is still this far from the limit
+REACH_FRACTION = 0.99995  # hip–ankle distance ≤ this × (thigh + shank): knee ≥ about 1°
+_HEEL_RISE_MARGIN_M = 0.003  # the heel rises while the leg is still this far from the limit
 _MAX_TO_PITCH_DEG = 50.0
+_TERMINAL_SWING_KNEE_DEG = 15.0  # designed knee when the landing leg starts to count
+_TRAILING_KNEE_DEG = 6.0  # ... and when the stance leg stops counting
+_HEIGHT_FIT_S = 0.05  # smoothing scale of the pelvis height at up to REFERENCE_SPEED_MPS
 
 
 @dataclass(frozen=True)
 class GaitConfig:
-    """How the subject walks. Amplitudes are half of the peak-to-peak excursion."""
+    """How the subject walks. Amplitudes are half of the peak-to-peak excursion.
+
+    The pelvis vertical excursion is not a parameter: it follows from the legs, whose stance
+    knee is designed by ``knee_extended_deg`` (heel strike, mid-stance, standing) and
+    ``knee_loading_deg`` (loading-response peak).
+    """
 
     speed_mps: float = 1.2
     walk_length_m: float = 5.0
@@ -82,7 +103,6 @@ class GaitConfig:
     stand_start_s: float = 1.5
     stand_end_s: float = 1.5
     turn_deg: float = 0.0
-    pelvis_vertical_m: float = 0.02
     pelvis_lateral_m: float = 0.02
     pelvis_rotation_deg: float = 4.0
     pelvis_obliquity_deg: float = 4.0
@@ -92,6 +112,8 @@ class GaitConfig:
     toe_off_pitch_deg: float = 35.0
     toe_out_deg: float = 5.0
     stance_fraction: float = 0.6
+    knee_extended_deg: float = 3.0
+    knee_loading_deg: float = 17.0
     foot_flat_fraction: float = 0.09
     heel_off_fraction: float = 0.38
     min_heel_off_fraction: float = 0.30
@@ -108,6 +130,8 @@ class GaitConfig:
         _check_range("turn_deg", self.turn_deg, -360.0, 360.0)
         _check_range("toe_clearance_m", self.toe_clearance_m, 0.005, 0.05)
         _check_range("stance_fraction", self.stance_fraction, 0.55, 0.7)
+        _check_range("knee_extended_deg", self.knee_extended_deg, 2.0, 10.0)
+        _check_range("knee_loading_deg", self.knee_loading_deg, self.knee_extended_deg, 30.0)
         _check_range("foot_flat_fraction", self.foot_flat_fraction, 0.02, 0.15)
         _check_range("heel_off_fraction", self.heel_off_fraction, 0.2, self.stance_fraction - 0.1)
         _check_range(
@@ -347,21 +371,24 @@ def _step_events(plan: StepPlan) -> StepEvents:
 def generate_walk(subject: Subject, cfg: GaitConfig, rng: np.random.Generator) -> Walk:
     """Generate one walk (deterministic given ``rng``'s state)."""
     pp = PelvisParams(
-        vertical_m=cfg.pelvis_vertical_m,
         lateral_m=cfg.pelvis_lateral_m,
         rotation_rad=cfg.pelvis_rotation_deg * DEG,
         obliquity_rad=cfg.pelvis_obliquity_deg * DEG,
         tilt_rad=cfg.pelvis_tilt_deg * DEG,
+        # longer, faster steps vault higher: smooth the height more
+        height_fit_s=_HEIGHT_FIT_S * max(1.0, cfg.speed_mps / REFERENCE_SPEED_MPS) ** 1.3,
     )
-    settle = 2.0 * pp.height_smooth_s  # the height filter looks this far around each time
+    settle = 2.0 * pp.height_hold_s  # the height is held still this long around standing
     t_go = cfg.stand_start_s + settle
     path = WalkPath(cfg.walk_length_m, cfg.turn_deg * DEG)
     plan = _plan(path, subject, cfg, rng, t_first_heel_off=t_go + pp.progression_smooth_s)
-    duration = motion_end_time(plan, pp) + settle + cfg.stand_end_s
+    t_stop = motion_end_time(plan, pp)
+    duration = t_stop + settle + cfg.stand_end_s
     ankle_S = subject.ankle_in_shoe()
     grid = pelvis_grid(plan, path, pp, t_go=t_go, t_end=duration, ankle_x=float(ankle_S[0]))
-    plan, feet, z_nominal, bounds = _fit_feet_and_height(plan, grid, subject, cfg, pp)
-    pelvis = build_pelvis(grid, pp, z_nominal, bounds)
+    still = (cfg.stand_start_s, t_stop + settle)
+    plan, feet, z_fit, bounds = _fit_feet_and_height(plan, grid, subject, cfg, pp, still)
+    pelvis = build_pelvis(grid, z_fit, bounds)
     return Walk(subject, cfg, plan, path, feet, pelvis, duration)
 
 
@@ -393,27 +420,50 @@ def _plan(
 
 
 def _fit_feet_and_height(
-    plan: StepPlan, grid: PelvisGrid, subject: Subject, cfg: GaitConfig, pp: PelvisParams
+    plan: StepPlan,
+    grid: PelvisGrid,
+    subject: Subject,
+    cfg: GaitConfig,
+    pp: PelvisParams,
+    still: tuple[float, float],
 ) -> tuple[StepPlan, tuple[FootTrajectory, FootTrajectory], np.ndarray, np.ndarray]:
-    """Heel-off times and the nominal pelvis height, fitted to each other (two rounds).
+    """Heel-off times and the pelvis height, fitted to each other (two rounds).
 
-    Round one moves heel offs earlier where the stance leg cannot reach the nominal height,
-    then lowers the height for what heel rise cannot fix; round two re-fits the heel offs to
-    the lowered height. Returns the final plan, feet, nominal height and per-leg bounds.
+    The desired height follows the designed stance-knee flexion (:func:`stance_knee`); each
+    heel off moves earlier where that leg, once it no longer carries the body, could not reach
+    the desired height; the height is fitted again to the new feet, the last time constrained
+    to the reach bounds. Returns the final plan, feet, fitted height and per-leg reach bounds.
     """
     ankle_S = subject.ankle_in_shoe()
-    J = subject.skeleton().rest_joints
+    skel = subject.skeleton()
+    J = skel.rest_joints
     hips_in_P = (R_PfromSMPL @ (J[1:3] - J[0]).T).T
+    thigh, shank = np.asarray(skel.thigh_lengths), np.asarray(skel.shank_lengths)
     reach = REACH_FRACTION * subject.leg_length_m
-    feet = _build_feet(plan, subject, cfg)
-    z_stand = standing_height(reach_bounds(grid, _ankles(feet, grid.t, ankle_S), hips_in_P, reach))
-    z_nominal = nominal_height(grid, pp, z_stand)
+    design = StanceKnee(
+        cfg.knee_extended_deg * DEG,
+        cfg.knee_loading_deg * DEG,
+        _TERMINAL_SWING_KNEE_DEG * DEG,
+        _TRAILING_KNEE_DEG * DEG,
+    )
+    knee, weight = stance_knee(plan, grid.t, design)
     earliest = (cfg.heel_off_fraction - cfg.min_heel_off_fraction) / (
         cfg.heel_off_fraction - cfg.foot_flat_fraction
     )
+
+    def fit(feet: tuple[FootTrajectory, FootTrajectory], final: bool) -> tuple[np.ndarray, ...]:
+        ankles = _ankles(feet, grid.t, ankle_S)
+        bounds = reach_bounds(grid, ankles, hips_in_P, reach)
+        targets = design_heights(grid, ankles, hips_in_P, knee, thigh, shank)
+        upper = np.min(bounds, axis=1)
+        z, desired = fit_height(grid, targets, weight, upper, pp, still, constrained=final)
+        return z, desired, bounds
+
     planned = plan.stances
-    for _ in range(2):
-        hips = grid.hips(z_nominal, hips_in_P)
+    feet = _build_feet(plan, subject, cfg)
+    _, desired, _ = fit(feet, final=False)
+    for final in (False, True):
+        hips = grid.hips(desired, hips_in_P)
         left, right = (
             adapt_heel_off(
                 planned[i],
@@ -425,14 +475,14 @@ def _fit_feet_and_height(
                 _MAX_TO_PITCH_DEG * DEG,
                 plan.t_first_move,
                 earliest,
+                checked=np.isnan(knee[:, i]),
             )
             for i in (0, 1)
         )
         plan = replace(plan, stances=(left, right))
         feet = _build_feet(plan, subject, cfg)
-        bounds = reach_bounds(grid, _ankles(feet, grid.t, ankle_S), hips_in_P, reach)
-        z_nominal = lower_to_fit(grid, z_nominal, bounds)
-    return plan, feet, z_nominal, bounds
+        z_fit, desired, bounds = fit(feet, final)
+    return plan, feet, z_fit, bounds
 
 
 def _build_feet(

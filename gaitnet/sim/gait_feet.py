@@ -16,7 +16,9 @@ Phases of one foot:
   the configured toe clearance at mid-swing, and a sideways one that keeps the swing shoe clear
   of the standing one.
 
-``g(u) = (1 − u)³(1 + 2.5u + 4.5u²)`` falls monotonically from 1 to 0 with ``g'(0) = −0.5``,
+``g(u) = (1 − u)³(1 + 1.2u + 0.6u²)`` falls monotonically from 1 to 0 with ``g'(0) = −1.8``
+(the foot rolls down fastest right at heel strike, so the landing ankle still moves forward
+and down and the leg straightens close to the heel strike rather than well before it),
 ``g''(0) = 0`` and a triple zero at 1; ``h(u) = u³(2 − u)`` rises monotonically from 0 to 1
 with a triple zero at 0, ``h'(1) = 2`` (a fast push-off) and ``h''(1) = 0``. So the rockers
 join foot flat with C² continuity.
@@ -38,7 +40,7 @@ __all__ = [
 ]
 
 FLAT, HEEL, TOE, SWING = 0, 1, 2, 3
-_G_A, _G_B = 2.5, 4.5
+_G_A, _G_B = 1.2, 0.6
 _G_D0 = _G_A - 3.0  # g'(0)
 _H_D1 = 2.0  # h'(1)
 _H_C = (10.0 - 4.0 * _H_D1, 7.0 * _H_D1 - 15.0, 6.0 - 3.0 * _H_D1)  # h(1) = 1, h''(1) = 0
@@ -293,10 +295,12 @@ def adapt_heel_off(
     max_to_pitch_rad: float,
     t_earliest: float,
     earliest_fraction: float,
+    checked: np.ndarray | None = None,
 ) -> tuple[FootStance, ...]:
     """Move each heel off earlier (never later) so the heel rises before the leg runs out.
 
-    ``hips`` (n, 3) is this side's hip on the grid ``t`` at the nominal pelvis height. Heel off
+    ``hips`` (n, 3) is this side's hip on the grid ``t`` at the desired pelvis height; only the
+    times where ``checked`` (n,) is true count (default: all). Heel off
     moves at most ``earliest_fraction`` of the way from its planned time back to foot flat,
     and never before ``t_earliest``; the toe-off angle grows (up to ``max_to_pitch_rad``) if
     the leg needs more at toe off.
@@ -309,6 +313,8 @@ def adapt_heel_off(
         t_ff = st.t_ff if np.isfinite(st.t_ff) else t_earliest
         m = (t >= t_ff) & (t <= st.t_to)
         need = required_heel_rise(st, hips[m], reach, L, ankle_S)
+        if checked is not None:
+            need = np.where(checked[m], need, 0.0)
         phi_to = float(np.clip(max(st.to_pitch_rad, need[-1] + 0.02), 0.0, max_to_pitch_rad))
         lo = max(st.t_ho - earliest_fraction * (st.t_ho - t_ff), min(t_earliest, st.t_ho))
         hi = st.t_ho

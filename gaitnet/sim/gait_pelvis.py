@@ -1,4 +1,4 @@
-"""Pelvis trajectory: smooth (C²+) progression, oscillations and a reach-limited height.
+"""Pelvis trajectory: smooth (C²+) progression and oscillations, and a height set by the legs.
 
 Pelvis frame P: origin at the SMPL pelvis joint, x forward, y left, z up. Its pose is six
 channels — position ``(x, y, z)`` and Z-Y-X Euler angles ``(ψ yaw, θ tilt, φ obliquity)`` with
@@ -10,18 +10,28 @@ and are exactly consistent with each other.
 Construction (step phase ``Φ(t)``: a C² spline through ``Φ(h_k) = k`` at the heel strikes;
 ``E(t)``: a C³ envelope rising from 0 at the end of standing to 1 at the first heel strike and
 back to 0 when the walk ends; ``Φ_L``: the phase of a left heel strike):
-- progression ``s(t)`` along the path: a piecewise-linear curve through "pelvis over the
-  stance ankle ``_OVER_ANKLE`` steps after its heel strike" knots, convolved with a smooth
-  kernel; it is constant while standing, so the start-up and slow-down are smooth;
+- progression ``s(t)`` along the path: a piecewise-linear curve through "midway between the
+  feet at each heel strike" and "over the new stance ankle ``_OVER_ANKLE`` steps later" knots,
+  convolved with a smooth kernel; it is constant while standing, so the start-up and
+  slow-down are smooth;
 - lateral sway ``E·A_lat·cos π(Φ − Φ_L − 0.6)`` (toward the stance foot, peak at mid-stance),
   rotation ``−E·A_rot·cos π(Φ − Φ_L)`` (left hip forward at left HS), obliquity
   ``E·A_obl·cos π(Φ − Φ_L − 0.3)`` (swing side drops in loading response), tilt
   ``E·A_tilt·cos 2π(Φ − 0.9)``;
-- height (:func:`nominal_height`, :func:`lower_to_fit`, :func:`build_pelvis`): a nominal
-  ``z_stand − E·A_v·(1 + cos 2π(Φ − _PHASE_LOWEST))`` (lowest at heel strike / double
-  support, highest at mid-stance) lowered as a whole until both hip–ankle distances stay
-  below the reach, then soft-minimised (``−k log Σ exp(−z_i/k)``, below every argument) with
-  the per-leg reach bounds. So both ankles are always reachable and there is no kink.
+- height: set by the legs, not prescribed. :func:`stance_knee` designs the knee flexion of
+  each leg while it carries the body (cycle fractions after its heel strike): extending from
+  ``terminal_swing_rad`` to ``extended_rad`` in the last ``_SWING_LEAD`` before the heel
+  strike, a loading-response bump to ``loading_rad`` at ``_LOADING_PEAK``, extended again in
+  mid-stance; from ``_CARRY_FULL`` to ``_CARRY_END`` the leg stops counting (its knee may flex
+  as the body falls toward the other foot, whose heel strike ends the vault). Standing: both
+  legs at ``extended_rad``. :func:`design_heights` turns a knee angle into the pelvis height
+  at which that leg's hip–ankle distance equals the two-link length. :func:`fit_height` fits
+  a discrete smoothing spline (jerk penalty) to the weighted design heights — where both legs
+  count the higher design yields to the lower one — subject to staying ``_FIT_GAP_M`` below
+  both legs' reach bounds (a banded QP, solved by ADMM); :func:`build_pelvis` soft-minimises
+  it (``−k log Σ exp(−z_i/k)``, below every argument) with the reach bounds. So the pelvis
+  vaults over the nearly straight stance leg and is lowest in double support; its vertical
+  excursion follows from the step and leg lengths (about 3–5 cm per step at 1.2–1.4 m/s).
 """
 
 from __future__ import annotations
@@ -30,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import BSpline, CubicSpline, make_interp_spline
+from scipy.linalg import cho_solve_banded, cholesky_banded, solveh_banded
 from scipy.ndimage import maximum_filter1d
 
 from gaitnet.sim.gait_plan import LEFT, StepPlan, WalkPath, smoothstep7
@@ -38,36 +49,55 @@ __all__ = [
     "PelvisGrid",
     "PelvisParams",
     "PelvisTrajectory",
+    "StanceKnee",
     "build_pelvis",
+    "design_heights",
     "euler_zyx_matrix",
-    "lower_to_fit",
+    "fit_height",
     "motion_end_time",
-    "nominal_height",
     "pelvis_grid",
     "reach_bounds",
-    "standing_height",
+    "stance_knee",
 ]
 
 GRID_DT_S = 1e-3
-_SOFTMIN_K_M = 0.001
-_REACH_MARGIN_M = 2e-4
-_STAND_GAP_M = 5e-4  # the nominal height stays this far below the reach bound when standing,
-_WALK_GAP_M = 0.004  # ... and this much further when walking
-_PHASE_LOWEST = 0.0  # step phase of the lowest pelvis (double support)
-_OVER_ANKLE = 0.45  # the pelvis passes over the stance ankle this many steps after its HS
+_SOFTMIN_K_M = 3e-5
+_REACH_MARGIN_M = 2e-5
+_FIT_GAP_M = 1.5e-4  # the fitted height stays this far below the reach bounds
+_OVER_ANKLE = 0.5  # the pelvis passes over the stance ankle this many steps after its HS
+# Knee design, in cycle fractions φ (0 = heel strike of the leg, 1 = its next heel strike):
+_LOADING_PEAK = 0.13  # loading-response knee peak
+_LOADING_END = 0.36  # ... the stance knee is extended again
+_SWING_LEAD = 0.10  # the landing leg starts to count this long before its heel strike
+_CARRY_FULL = 0.25  # the stance leg counts fully until here,
+_CARRY_END = 0.37  # ... and no more from here
+_HS_EMPHASIS = 100.0  # extra weight around the heel strike (knee nearly straight),
+_HS_EMPHASIS_WIDTH = 0.03  # ... over about this (standard deviation),
+_MS_EMPHASIS = 10.0  # ... and around mid-stance
+_MS_PHASE = 0.27
+_MS_EMPHASIS_WIDTH = 0.04
+_YIELD_M = 5e-4  # a leg whose design is this much higher than the other's counts e times less
+_ADMM_RHO = 1000.0  # the constrained fit (z ≤ bound): ADMM penalty and iterations (what is
+_ADMM_ITERATIONS = 100  # ... left above the bound, a few µm, goes by the smooth correction)
 
 
 @dataclass(frozen=True)
 class PelvisParams:
-    """Amplitudes [m, rad] and smoothing widths [s] of the pelvis motion."""
+    """Amplitudes [m, rad] and smoothing widths [s] of the pelvis motion.
 
-    vertical_m: float
+    ``height_fit_s``: smoothing scale of the height fit; ``height_fix_s``: half width of the
+    correction that removes what the constrained fit leaves above the bounds (µm);
+    ``height_hold_s``: the height is blended to constant over this long around standing.
+    """
+
     lateral_m: float
     rotation_rad: float
     obliquity_rad: float
     tilt_rad: float
     progression_smooth_s: float = 0.4
-    height_smooth_s: float = 0.25
+    height_fit_s: float = 0.05
+    height_fix_s: float = 0.05
+    height_hold_s: float = 0.25
 
 
 def euler_zyx_matrix(yaw: np.ndarray, tilt: np.ndarray, obl: np.ndarray) -> np.ndarray:
@@ -160,12 +190,18 @@ def _kernel_smooth(x: np.ndarray, half_width_s: float) -> np.ndarray:
 
 
 def _progression(t: np.ndarray, plan: StepPlan, ankle_x: float, w: float) -> np.ndarray:
-    """Arc length of the pelvis: PL through mid-stance knots, smoothed by the kernel."""
+    """Arc length of the pelvis: PL through heel-strike and mid-stance knots, smoothed.
+
+    At each heel strike the pelvis is midway between the feet, ``_OVER_ANKLE`` of that step
+    later over the new stance ankle (the closing step lands beside: the pelvis stops there).
+    """
     h, arc = plan.step_hs, plan.step_arc
     n = len(h) - 1
     T = np.diff(h)
-    knots_t = [plan.t_first_move] + [h[k] + _OVER_ANKLE * T[k - 1] for k in range(1, n + 1)]
-    knots_s = [0.0] + [arc[k] for k in range(1, n)] + [arc[n - 1]]
+    knots_t, knots_s = [plan.t_first_move], [0.0]
+    for k in range(1, n + 1):
+        knots_t += [h[k], h[k] + _OVER_ANKLE * T[k - 1]]
+        knots_s += [0.5 * (arc[k - 1] + arc[k]), arc[k]]
     s_pl = np.interp(t, knots_t, np.asarray(knots_s) + ankle_x)
     return _kernel_smooth(s_pl, w)
 
@@ -233,9 +269,13 @@ def pelvis_grid(
 
 
 def reach_bounds(
-    grid: PelvisGrid, ankles: np.ndarray, hips_in_P: np.ndarray, reach: float
+    grid: PelvisGrid, ankles: np.ndarray, hips_in_P: np.ndarray, reach: float | np.ndarray
 ) -> np.ndarray:
-    """Highest pelvis z per leg (n, 2) keeping the hip–ankle distance ≤ ``reach`` − margin."""
+    """Highest pelvis z per leg (n, 2) keeping the hip–ankle distance ≤ ``reach`` − margin.
+
+    ``reach`` is a scalar or per time and leg (n, 2).
+    """
+    reach = np.broadcast_to(np.asarray(reach, dtype=np.float64), ankles.shape[:2])
     off = np.einsum("nij,sj->nsi", grid.rotation(), hips_in_P)  # (n, 2, 3)
     dxy = grid.xy[:, None, :] + off[..., :2] - ankles[..., :2]
     rest = reach**2 - np.sum(dxy * dxy, axis=-1)
@@ -244,55 +284,202 @@ def reach_bounds(
     return ankles[..., 2] + np.sqrt(rest) - off[..., 2] - _REACH_MARGIN_M
 
 
-def standing_height(bounds: np.ndarray) -> float:
-    """Pelvis height while standing (just below the reach bound at t = 0)."""
-    return float(np.min(bounds[0])) - _STAND_GAP_M
+@dataclass(frozen=True)
+class StanceKnee:
+    """Designed knee flexion [rad] of a leg while it carries the body (module docstring).
 
-
-def nominal_height(grid: PelvisGrid, p: PelvisParams, z_stand: float) -> np.ndarray:
-    """Sinusoidal walking height: top at the standing height, ``2·vertical_m`` peak to peak.
-
-    Lowest at step phase ``_PHASE_LOWEST`` (double support), highest half a step later.
+    ``extended_rad`` at heel strike, in mid-stance and while standing; ``loading_rad`` at the
+    loading-response peak after a steady-length step (shorter steps flex less);
+    ``terminal_swing_rad`` when the landing leg starts to count, ``_SWING_LEAD`` of the cycle
+    before its heel strike; ``trailing_rad`` when the stance leg stops counting.
     """
-    wave = 1.0 + np.cos(2 * np.pi * (grid.phase - _PHASE_LOWEST))  # 2 at the lowest point
-    return z_stand - grid.envelope * p.vertical_m * wave
+
+    extended_rad: float
+    loading_rad: float
+    terminal_swing_rad: float
+    trailing_rad: float
 
 
-def lower_to_fit(grid: PelvisGrid, z_nominal: np.ndarray, bounds: np.ndarray) -> np.ndarray:
-    """``z_nominal − E·δ`` with the smallest ``δ ≥ 0`` that keeps the steady walk (from the
-    second heel strike to one step before the last) ``_STAND_GAP_M + _WALK_GAP_M`` below the
-    reach bounds."""
-    E = grid.envelope
-    bound = np.min(bounds, axis=1) - _STAND_GAP_M - E * _WALK_GAP_M
-    steady = (E > 0.99) & (grid.phase >= 2.0) & (grid.phase <= grid.phase_last_hs - 1.0)
-    delta = max(0.0, float(np.max((z_nominal - bound)[steady]))) if np.any(steady) else 0.0
-    return z_nominal - E * delta
+def _loading_bump(u: np.ndarray) -> np.ndarray:
+    """``(u/u_p)^a ((1 − u)/(1 − u_p))^c`` on [0, 1] (0 outside): peak 1 at ``u_p``, C³ at 1."""
+    a = 2.0
+    u_p = _LOADING_PEAK / _LOADING_END
+    c = a * (1.0 - u_p) / u_p
+    u = np.clip(u, 0.0, 1.0)
+    return (u / u_p) ** a * ((1.0 - u) / (1.0 - u_p)) ** c
 
 
-def build_pelvis(
-    grid: PelvisGrid, p: PelvisParams, z_nominal: np.ndarray, bounds: np.ndarray
-) -> PelvisTrajectory:
-    """Final pelvis: the nominal height lowered where needed, soft-min with the reach bounds.
+def stance_knee(plan: StepPlan, t: np.ndarray, knee: StanceKnee) -> tuple[np.ndarray, np.ndarray]:
+    """Designed knee flexion [rad] and weight ≥ 0 of each leg (n, 2) on the grid ``t``.
 
-    The lowering is :func:`lower_to_fit` plus a dilated-and-smoothed local term for what
-    remains (start-up, slow-down), so the nominal keeps ``_STAND_GAP_M + E·_WALK_GAP_M`` below
-    the bounds and the soft-min hardly bends it.
+    With the cycle phase ``φ`` of a stance (0 at its heel strike ``h_k``, 1 two steps later):
+    the weight rises from 0 at ``φ = −_SWING_LEAD`` to 1 half-way to the heel strike (terminal
+    swing: the knee extends from ``terminal_swing_rad`` to ``extended_rad``), is raised
+    around the heel strike and mid-stance (``_HS_EMPHASIS``, ``_MS_EMPHASIS``: the knee is
+    nearly straight there), and falls to 0 from ``_CARRY_FULL`` to ``_CARRY_END`` (the knee
+    design bends toward ``trailing_rad``); the loading bump peaks at ``_LOADING_PEAK``. Step
+    length scales the bump, the terminal-swing flexion and the emphasis (the closing step
+    lands beside the other foot). The standing stances at the start weigh 1 until they stop
+    counting like any stance, the final ones until the end. The knee is NaN where the weight
+    is 0.
     """
-    z0 = lower_to_fit(grid, z_nominal, bounds)
-    bound = np.min(bounds, axis=1) - _STAND_GAP_M - grid.envelope * _WALK_GAP_M
-    local = np.maximum(z0 - bound, 0.0)
-    z0 = z0 - _kernel_smooth(_dilate(local, p.height_smooth_s), p.height_smooth_s)
-    z = _softmin(np.column_stack([z0, bounds]))
-    channels = np.stack(
-        [grid.xy[:, 0], grid.xy[:, 1], z, grid.yaw, grid.tilt, grid.obliquity], axis=-1
-    )
-    t = grid.t
-    return PelvisTrajectory(make_interp_spline(t, channels, k=5), float(t[-1]))
+    h, arc = plan.step_hs, plan.step_arc
+    n_steps = len(h) - 1
+    first = int(plan.step_side[0])
+    theta = np.full((len(t), 2), np.nan)
+    weight = np.zeros((len(t), 2))
+    for side in (0, 1):
+        # (heel-strike step index, loading amplitude) per stance; index −1: virtual h_{−1}
+        rows = [(-1 if side == first else 0, 0.0)]
+        for k in range(1, n_steps + 1):
+            if int(plan.step_side[k - 1]) == side:
+                scale = float(np.clip((arc[k] - arc[k - 1]) / plan.steady_step_m, 0.0, 1.0))
+                rows.append((k, scale))
+        for i, (k, scale) in enumerate(rows):
+            h_k = h[k] if k >= 0 else h[0] - (h[1] - h[0])
+            step = h[k + 1] - h_k if k + 1 <= n_steps else h[k] - h[k - 1]
+            phi = (t - h_k) / (2.0 * step)
+            lead = _SWING_LEAD * max(scale, 0.2)  # a short step lands more gently
+            w = np.ones_like(t)
+            if i > 0:  # landing: rises in terminal swing, emphasised around the heel strike
+                w *= smoothstep7((phi + lead) / (0.5 * lead))
+                w *= 1.0 + scale * _HS_EMPHASIS * np.exp(-0.5 * (phi / _HS_EMPHASIS_WIDTH) ** 2)
+                w *= 1.0 + scale * _MS_EMPHASIS * np.exp(
+                    -0.5 * ((phi - _MS_PHASE) / _MS_EMPHASIS_WIDTH) ** 2
+                )
+            late = smoothstep7((phi - _CARRY_FULL) / (_CARRY_END - _CARRY_FULL))
+            final = i + 1 == len(rows)
+            if not final:  # stops counting in terminal stance
+                w *= 1.0 - late
+            m = w > 0.0
+            swing = np.clip(-phi[m] / lead, 0.0, 1.0) if i > 0 else 0.0
+            flex = scale * (knee.terminal_swing_rad - knee.extended_rad)
+            th = knee.extended_rad + flex * (1.0 - smoothstep7(1.0 - swing))
+            if not final:
+                th = th + (knee.trailing_rad - knee.extended_rad) * late[m]
+            bump = scale * _loading_bump(phi[m] / _LOADING_END)
+            theta[m, side] = th + (knee.loading_rad - knee.extended_rad) * bump
+            weight[m, side] = w[m]
+    return theta, weight
+
+
+def _leg_reach(thigh_m: np.ndarray, shank_m: np.ndarray, knee_rad: np.ndarray) -> np.ndarray:
+    """Hip–ankle distance of a two-link leg (per side, last axis) with knee flexion ``knee_rad``."""
+    return np.sqrt(thigh_m**2 + shank_m**2 + 2.0 * thigh_m * shank_m * np.cos(knee_rad))
+
+
+def design_heights(
+    grid: PelvisGrid,
+    ankles: np.ndarray,
+    hips_in_P: np.ndarray,
+    knee: np.ndarray,
+    thigh_m: np.ndarray,
+    shank_m: np.ndarray,
+) -> np.ndarray:
+    """Pelvis height (n, 2) at which each leg has the designed knee flexion (NaN where none)."""
+    designed = np.isfinite(knee)
+    reach = _leg_reach(thigh_m, shank_m, np.where(designed, knee, 0.0))
+    return np.where(designed, reach_bounds(grid, ankles, hips_in_P, reach), np.nan)
+
+
+def fit_height(
+    grid: PelvisGrid,
+    targets: np.ndarray,
+    weights: np.ndarray,
+    upper: np.ndarray,
+    p: PelvisParams,
+    still: tuple[float, float],
+    constrained: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Smooth pelvis height on the grid that follows the legs' designs and stays reachable.
+
+    ``targets``/``weights`` (n, 2) from :func:`design_heights`/:func:`stance_knee`; where both
+    legs count, the weight of the higher design is divided by ``1 + w_other·exp(Δ/_YIELD_M)``.
+    The desired height minimises ``Σ_i w_i (z − target_i)² + (s/Δt)⁶ Σ (Δ³z)²`` (a discrete
+    smoothing spline penalising jerk, ``s = p.height_fit_s``); with ``constrained`` the same
+    objective is minimised subject to ``z ≤ upper − _FIT_GAP_M`` (a banded QP, by ADMM) and the
+    few µm that leaves above go by a smooth correction (the excess dilated and smoothed over
+    ``p.height_fix_s``). Both are made exactly constant before ``still[0]`` and after
+    ``still[1]`` (standing) by a C³ blend over ``p.height_hold_s`` (they hardly change there).
+    Returns the height (the desired one if not ``constrained``) and the desired height.
+    """
+    w = np.where(np.isfinite(targets), weights, 0.0)
+    y = np.where(w > 0.0, targets, 0.0)
+    # Where both legs count, the higher one yields to the lower one (a smooth soft-min).
+    rise = np.clip((y - y[:, ::-1]) / _YIELD_M, -50.0, 50.0)
+    w = w / (1.0 + w[:, ::-1] * np.exp(rise))
+    w_sum = np.sum(w, axis=1)
+    rhs = np.sum(w * y, axis=1)
+    base = float(np.sum(rhs) / np.sum(w_sum))
+    ab = _jerk_normal_matrix(len(w_sum), (p.height_fit_s / GRID_DT_S) ** 6)
+    t, ramp = grid.t, p.height_hold_s
+    i0 = min(int(np.searchsorted(t, still[0])), len(t) - 1)
+    up = smoothstep7((t - still[0]) / ramp)
+    i1 = min(int(np.searchsorted(t, still[1])), len(t) - 1)
+    down = smoothstep7((still[1] - t) / ramp)
+
+    def hold(z: np.ndarray) -> np.ndarray:
+        z = z[i0] + up * (z - z[i0])
+        return z[i1] + down * (z - z[i1])
+
+    m = ab.copy()
+    m[3] += w_sum
+    q = rhs - base * w_sum
+    desired = hold(solveh_banded(m, q) + base)
+    if not constrained:
+        return desired, desired
+    bound = upper - _FIT_GAP_M
+    z = desired
+    if np.max(desired - bound) > 0.0:
+        z = hold(_admm_below(m, q, desired - base, bound - base) + base)
+    excess = np.maximum(z - bound, 0.0)
+    if np.max(excess) > 0.0:
+        z = hold(z - _kernel_smooth(_dilate(excess, p.height_fix_s), p.height_fix_s))
+    return z, desired
+
+
+def _admm_below(ab: np.ndarray, q: np.ndarray, z0: np.ndarray, ub: np.ndarray) -> np.ndarray:
+    """``argmin ½zᵀAz − qᵀz`` subject to ``z ≤ ub`` by ADMM (``A`` banded, upper storage)."""
+    m = ab.copy()
+    m[3] += _ADMM_RHO
+    chol = cholesky_banded(m)
+    v = np.minimum(z0, ub)
+    lam = np.zeros_like(v)
+    z = z0
+    for _ in range(_ADMM_ITERATIONS):
+        z = cho_solve_banded((chol, False), q + _ADMM_RHO * (v - lam))
+        v = np.minimum(z + lam, ub)
+        lam += z - v
+    return z
+
+
+def _jerk_normal_matrix(n: int, mu: float) -> np.ndarray:
+    """``μ D₃ᵀ D₃`` (third differences) in upper banded storage (4, n)."""
+    c = np.array([-1.0, 3.0, -3.0, 1.0])
+    ab = np.zeros((4, n))
+    for a in range(4):
+        for b in range(a, 4):
+            ab[3 - (b - a), b : n - 3 + b] += mu * c[a] * c[b]
+    return ab
 
 
 def _dilate(x: np.ndarray, half_width_s: float) -> np.ndarray:
     n = max(1, int(round(half_width_s / GRID_DT_S)))
     return maximum_filter1d(x, size=2 * n + 1, mode="nearest")
+
+
+def build_pelvis(grid: PelvisGrid, z_fit: np.ndarray, bounds: np.ndarray) -> PelvisTrajectory:
+    """Final pelvis: the fitted height soft-minimised with the reach bounds (n, 2).
+
+    ``z_fit`` from :func:`fit_height` keeps ``_FIT_GAP_M`` below the bounds, so the soft-min
+    only guarantees reach and hardly changes it.
+    """
+    z = _softmin(np.column_stack([z_fit, bounds]))
+    channels = np.stack(
+        [grid.xy[:, 0], grid.xy[:, 1], z, grid.yaw, grid.tilt, grid.obliquity], axis=-1
+    )
+    t = grid.t
+    return PelvisTrajectory(make_interp_spline(t, channels, k=5), float(t[-1]))
 
 
 def _softmin(z: np.ndarray) -> np.ndarray:
