@@ -142,6 +142,17 @@ def frame_times(duration_s: float, fps: float) -> np.ndarray:
     return FRAME_MARGIN_S + np.arange(n) / fps
 
 
+def preview_frames(times: np.ndarray, cfg: SimConfig) -> set[int]:
+    """Frames for the contact sheet: the first one (standing on the tags), the rest walking."""
+    n = cfg.output.preview_frames
+    if n <= 0:
+        return set()
+    walking = (times > cfg.gait.stand_start_s + 0.5) & (times < times[-1] - cfg.gait.stand_end_s)
+    candidates = np.flatnonzero(walking) if walking.sum() >= n else np.arange(len(times))
+    picks = candidates[np.linspace(0, len(candidates) - 1, max(n - 1, 1)).round().astype(int)]
+    return {0, *picks.tolist()} if n > 1 else {0}
+
+
 def marker_pixel_checks(
     walk: Walk,
     t: float,
@@ -247,11 +258,7 @@ def simulate_session(
     drift = np.cumsum(
         sensor_rng.normal(0.0, cfg.scene.exposure_drift / np.sqrt(len(times)), len(times))
     )
-    preview_idx = set(
-        np.linspace(0, len(times) - 1, cfg.output.preview_frames).round().astype(int)
-        if cfg.output.preview_frames > 0
-        else []
-    )
+    preview_idx = preview_frames(times, cfg)
     preview_rows, captions, checks = [], [], []
     auto = None
     indices: Iterable[int] = range(len(times))
