@@ -81,16 +81,33 @@ def slip_and_imu(n_walks: int, seed: int) -> None:
                     worst_toe = max(worst_toe, float(np.linalg.norm(p - p[0], axis=1).max()))
         if k < 5:
             t1 = min(10.0, walk.duration_s)
-            imu, truth = simulate_imu(walk.pelvis_kinematics, T_PfromI, 0.0, t1,
-                                      ImuConfig(noise_free=True), np.random.default_rng(k))
-            p_est, _ = integrate_imu(imu.t_ns * 1e-9, imu.accel, imu.gyro, truth.R_WfromI[0],
-                                     truth.p_IinW[0], truth.v_IinW[0], 9.81)
+            imu, truth = simulate_imu(
+                walk.pelvis_kinematics,
+                T_PfromI,
+                0.0,
+                t1,
+                ImuConfig(noise_free=True),
+                np.random.default_rng(k),
+            )
+            p_est, _ = integrate_imu(
+                imu.t_ns * 1e-9,
+                imu.accel,
+                imu.gyro,
+                truth.R_WfromI[0],
+                truth.p_IinW[0],
+                truth.v_IinW[0],
+                9.81,
+            )
             worst_imu = max(worst_imu, float(np.linalg.norm(p_est - truth.p_IinW, axis=1).max()))
-    print(f"[slip] {n_walks} random walks: max sole-centre motion in foot flat "
-          f"{1000 * worst_flat:.4f} mm (criterion < 2 mm); heel pivot {1000 * worst_heel:.4f} mm; "
-          f"toe pivot {1000 * worst_toe:.4f} mm")
-    print(f"[imu] noise-free IMU integrated over 10 s (5 walks): max position error "
-          f"{1000 * worst_imu:.4f} mm (criterion < 10 mm)")
+    print(
+        f"[slip] {n_walks} random walks: max sole-centre motion in foot flat "
+        f"{1000 * worst_flat:.4f} mm (criterion < 2 mm); heel pivot {1000 * worst_heel:.4f} mm; "
+        f"toe pivot {1000 * worst_toe:.4f} mm"
+    )
+    print(
+        f"[imu] noise-free IMU integrated over 10 s (5 walks): max position error "
+        f"{1000 * worst_imu:.4f} mm (criterion < 10 mm)"
+    )
 
 
 def surface_checks(cfg: SimConfig, seed: int, session: Path, every: int) -> None:
@@ -115,8 +132,9 @@ def surface_checks(cfg: SimConfig, seed: int, session: Path, every: int) -> None
         T_WP[:3, :3], T_WP[:3, 3] = R[0], p[0]
         T_WC = T_WP @ T_PfromC
         body = walk.body_state(t)
-        res = render_frame(K, cfg.camera.width, cfg.camera.height, T_WC, floor, body,
-                           appearance, (), light)
+        res = render_frame(
+            K, cfg.camera.width, cfg.camera.height, T_WC, floor, body, appearance, (), light
+        )
         noisy = folder.frame(k).depth_m
         for value, sink in ((1, dist_foot), (2, dist_leg)):
             v, u = np.nonzero(res.label == value)
@@ -140,13 +158,17 @@ def surface_checks(cfg: SimConfig, seed: int, session: Path, every: int) -> None
     for name, d in (("foot", dist_foot), ("leg", dist_leg)):
         if d:
             d = np.asarray(d)
-            print(f"[labels] {name} pixels ({len(d)}): distance of back-projected noise-free "
-                  f"depth to the rendered surface median {1000 * np.median(d):.3f} mm, "
-                  f"99th pct {1000 * np.percentile(d, 99):.3f} mm")
+            print(
+                f"[labels] {name} pixels ({len(d)}): distance of back-projected noise-free "
+                f"depth to the rendered surface median {1000 * np.median(d):.3f} mm, "
+                f"99th pct {1000 * np.percentile(d, 99):.3f} mm"
+            )
     if noise:
         n = np.asarray(noise)
-        print(f"[labels] measured depth − true depth at labelled pixels: mean "
-              f"{1000 * n.mean():.2f} mm, std {1000 * n.std():.2f} mm")
+        print(
+            f"[labels] measured depth − true depth at labelled pixels: mean "
+            f"{1000 * n.mean():.2f} mm, std {1000 * n.std():.2f} mm"
+        )
 
 
 def digest(root: Path) -> str:
@@ -172,14 +194,18 @@ def main() -> None:
     start = time.perf_counter()
     result = simulate_session(cfg, args.seed, out / "default", overwrite=True)
     elapsed = time.perf_counter() - start
-    print(f"[speed] default session: {result.n_frames} frames 640×480 in {elapsed:.1f} s = "
-          f"{result.n_frames / elapsed:.2f} frames/s end to end on one thread "
-          f"(gait, render, sensor, PNG writing, ground truth)")
+    print(
+        f"[speed] default session: {result.n_frames} frames 640×480 in {elapsed:.1f} s = "
+        f"{result.n_frames / elapsed:.2f} frames/s end to end on one thread "
+        f"(gait, render, sensor, PNG writing, ground truth)"
+    )
     checks = result.marker_checks
     visible = 100 * checks["visible_marker_fraction"]
     on_label = 100 * checks["visible_marker_on_foot_label"]
-    print(f"[markers] visible in {visible:.1f} % of frame-sides; on a foot label of the right "
-          f"side in {on_label:.2f} % of those (criterion ≥ 99 %)")
+    print(
+        f"[markers] visible in {visible:.1f} % of frame-sides; on a foot label of the right "
+        f"side in {on_label:.2f} % of those (criterion ≥ 99 %)"
+    )
     session = SessionFolder(out / "default")
     print(f"[reader] session reader accepts it: {len(session)} frames, {len(session.imu)} IMU")
     surface_checks(cfg, args.seed, out / "default", args.every)
@@ -188,8 +214,10 @@ def main() -> None:
     a = simulate_session(tiny, 11, out / "tiny_a", overwrite=True).path
     b = simulate_session(tiny, 11, out / "tiny_b", overwrite=True).path
     c = simulate_session(tiny, 12, out / "tiny_c", overwrite=True).path
-    print(f"[determinism] same seed identical bytes: {digest(a) == digest(b)}; "
-          f"different seed differs: {digest(a) != digest(c)}")
+    print(
+        f"[determinism] same seed identical bytes: {digest(a) == digest(b)}; "
+        f"different seed differs: {digest(a) != digest(c)}"
+    )
 
 
 if __name__ == "__main__":

@@ -1,0 +1,129 @@
+"""Export trained models to ONNX with a parity check against PyTorch.
+
+    python export/onnx.py predictor --checkpoint runs/predictor/NAME/best.pt \
+        --out models/predictor/NAME.onnx
+
+``predictor``: the DCT-GCN motion predictor. The architecture comes from the checkpoint's
+resolved config; the export is refused unless onnxruntime reproduces PyTorch within
+``--atol`` (default 1e-4) on random inputs (gaitnet.motion.onnx_runtime.export_predictor_onnx).
+Prints the largest absolute difference and writes a JSON sidecar next to the model
+(``NAME.json``): input/output names and shapes, n_past, n_future, dct_n, frame rate, the node
+layout, the training config and, when the run folder has one, the evaluation (eval.json).
+
+Each model kind is a subcommand with its own ``run_*`` function, so further kinds (e.g. a
+``segmenter``) are added as another subparser.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+# This script is named like the ``onnx`` package: keep its own folder off the import path, or
+# ``import onnx`` (inside torch.onnx) would import this file.
+if sys.path and Path(sys.path[0] or ".").resolve() == Path(__file__).resolve().parent:
+    sys.path.pop(0)
+
+import argparse  # noqa: E402
+import hashlib  # noqa: E402
+import json  # noqa: E402
+from typing import Any  # noqa: E402
+
+from gaitnet.errors import GaitnetError  # noqa: E402
+from gaitnet.io.atomic import atomic_write_text  # noqa: E402
+
+
+def run_predictor(args: argparse.Namespace) -> int:
+    """Export a DCT-GCN checkpoint (``train/predictor.py``) and write its sidecar."""
+    from gaitnet.config import parse_config
+    from gaitnet.motion.gcn import DCTGCN, NODE_JOINT_NAMES, NODE_JOINTS
+    from gaitnet.motion.onnx_runtime import INPUT_NAME, OUTPUT_NAME, export_predictor_onnx
+    from gaitnet.training.checkpoint import load_checkpoint
+    from gaitnet.training.predictor import PredictorTrainingConfig
+
+    checkpoint = Path(args.checkpoint)
+    ckpt = load_checkpoint(checkpoint)
+    cfg = parse_config(PredictorTrainingConfig, ckpt["config"], f"{checkpoint} (config)")
+    model = DCTGCN(cfg.model)
+    model.load_state_dict(ckpt["model"])
+    out = Path(args.out)
+    report = export_predictor_onnx(model, out, opset=args.opset, atol=args.atol)
+    print(f"parity: max |onnxruntime - torch| = {report.max_abs_diff:.3g} (atol {args.atol:g}, "
+          f"batches {list(report.batch_sizes)})")  # fmt: skip
+
+    m = cfg.model
+    eval_file = checkpoint.parent / "eval.json"
+    metrics: Any = None
+    if eval_file.is_file():
+        full = json.loads(eval_file.read_text(encoding="utf-8"))
+        metrics = {k: full[k] for k in full if k not in ("config",)}
+    sidecar = {
+        "name": cfg.name,
+        "kind": "gaitnet motion predictor (DCT-GCN, thesis sec. 4.2)",
+        "onnx": out.name,
+        "sha256": hashlib.sha256(out.read_bytes()).hexdigest(),
+        "size_bytes": out.stat().st_size,
+        "opset": report.opset,
+        "input": {"name": INPUT_NAME, "shape": ["batch", m.n_past, m.n_nodes], "dtype": "float32"},
+        "output": {
+            "name": OUTPUT_NAME,
+            "shape": ["batch", m.n_past + m.n_future, m.n_nodes],
+            "dtype": "float32",
+            "note": "reconstructed past frames then the n_future predicted frames",
+        },
+        "n_past": m.n_past,
+        "n_future": m.n_future,
+        "dct_n": m.dct_n,
+        "fps": float(ckpt.get("fps", 30.0)),
+        "node_layout": {
+            "nodes": m.n_nodes,
+            "node": "3*j + c: axis-angle component c (x, y, z) of joint j",
+            "smpl_joints": list(NODE_JOINTS),
+            "joint_names": list(NODE_JOINT_NAMES),
+            "joint_0": "root orientation, world-from-pelvis, heading-normalised so the body "
+            "faces +x (z up) at the last observed frame",
+            "others": "local rotations relative to the parent (SMPL convention)",
+            "translation": "not predicted",
+        },
+        "parity_max_abs_diff": report.max_abs_diff,
+        "checkpoint": {
+            "path": str(checkpoint),
+            "epoch": int(ckpt["epoch"]),
+            "val_mpjpe_m": float(ckpt["best_metric"]),
+            "git_hash": ckpt["git_hash"],
+        },
+        "config": ckpt["config"],
+        "metrics": metrics,
+    }
+    sidecar_path = out.with_suffix(".json")
+    atomic_write_text(sidecar_path, json.dumps(sidecar, indent=1) + "\n")
+    print(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB) and {sidecar_path}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="kind", required=True, metavar="KIND")
+    p = sub.add_parser("predictor", help="DCT-GCN motion predictor checkpoint → ONNX")
+    p.add_argument("--checkpoint", required=True, help="best.pt / last.pt of train/predictor.py")
+    p.add_argument("--out", required=True, help="ONNX file to write (sidecar: same name .json)")
+    p.add_argument("--opset", type=int, default=18, help="ONNX opset (default 18)")
+    p.add_argument("--atol", type=float, default=1e-4, help="parity tolerance (default 1e-4)")
+    p.set_defaults(func=run_predictor)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except GaitnetError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    except RuntimeError as exc:  # OnnxParityError and exporter failures
+        print(f"error: export failed: {exc}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

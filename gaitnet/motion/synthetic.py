@@ -1,0 +1,345 @@
+"""Synthetic walking clips in AMASS's SMPL+H G ``*_poses.npz`` format (thesis sec. 4.2.2).
+
+The thesis trains its motion predictor (sec. 4.2) on AMASS walking clips. AMASS is licensed and
+not downloadable at run time, so this module writes clips of the same format from the
+simulator's gait generator (:func:`gaitnet.sim.gait.generate_walk`): the files go through the
+real AMASS loader (:func:`gaitnet.motion.amass.prepare_walking_subset`, resampling by time
+included) exactly as downloaded AMASS clips would.
+
+One clip = one whole simulated walk (standing start, gait initiation, steady walking, optional
+turn, stopping, standing end), sampled at a mocap-like rate drawn from
+:attr:`SyntheticWalksConfig.mocap_rates_hz` (60 / 100 / 120 Hz by default, so the 30 fps
+resampling is exercised with non-integer and integer ratios alike).
+
+Keys written (AMASS SMPL+H G, see :data:`gaitnet.motion.amass.PREPARED_KEYS` for what is read):
+
+* ``poses`` (T, 156) float64: root orientation in ``[0:3]``, SMPL joint ``k``'s local
+  axis-angle in ``[3k : 3k+3]``; only the lower-body joints 1, 2, 4, 5, 7, 8, 10, 11 are
+  non-zero (the simulator moves nothing else; the foot joints 10, 11 are zero too);
+* ``trans`` (T, 3) float64 [m]: SMPL translation, ``p_pelvis = J_rest[0] + trans``;
+* ``betas`` (16,) zeros, ``dmpls`` (T, 8) zeros, ``gender`` ``'neutral'``,
+  ``mocap_framerate`` () [Hz];
+* ``gaitnet_rest_joints`` (9, 3) float64 [m]: the subject's own rest joints (SMPL canonical
+  frame, order :data:`gaitnet.motion.skeleton.SMPL_JOINT_INDICES`). Synthetic clips use the
+  simulator's built-in skeleton of the subject's height, not an SMPL body shape, so ``betas``
+  carry no information; forward kinematics with these rest joints
+  (:func:`gaitnet.motion.skeleton.forward_kinematics`) reproduces the simulator's joints.
+  AMASS readers ignore unknown keys.
+
+Split (held-out subjects AND a held-out speed band). Sub-datasets, as AMASS's first folder level:
+
+* ``SynthWalkTrain``: training subjects, speeds in :attr:`SyntheticWalksConfig.train_speed_bands`
+  (default 0.6–1.0 and 1.2–1.7 m/s);
+* ``SynthWalkVal``: other subjects, speeds in the same training bands (model selection sees
+  unseen people, never the held-out speeds);
+* ``SynthWalkTest``: yet other subjects, speeds in :attr:`SyntheticWalksConfig.test_speed_bands`
+  (default 1.0–1.2 m/s, a band no training or validation clip uses).
+
+The folder → split mapping is :data:`SYNTH_DATASET_SPLIT`, a
+:class:`gaitnet.motion.amass.DatasetSplit` passed to the loader (``prepare_amass.py --val
+SynthWalkVal --test SynthWalkTest``, or the training config's ``data.val_datasets`` /
+``data.test_datasets``); nothing is hard-coded in the loader.
+
+Layout: ``<root>/<SubDataset>/<subject>/<clip>_walk_poses.npz`` plus ``<root>/manifest.json``
+(one entry per clip: split, subject, height, speed, turn, rate, duration).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+
+import numpy as np
+
+from gaitnet.io.atomic import atomic_open, atomic_write_text
+from gaitnet.motion.amass import DatasetSplit
+from gaitnet.motion.skeleton import ROTATED_SMPL_INDICES
+from gaitnet.sim.gait import GaitConfig, Walk, generate_walk
+from gaitnet.sim.subject import HEIGHT_RANGE_M, Subject, sample_subject
+
+__all__ = [
+    "N_SMPLH_JOINTS",
+    "REST_JOINTS_KEY",
+    "SPLIT_DATASETS",
+    "SYNTH_DATASET_SPLIT",
+    "SyntheticClip",
+    "SyntheticWalksConfig",
+    "SyntheticWalksReport",
+    "make_synthetic_walks",
+    "sample_gait_config",
+    "walk_to_amass",
+    "write_amass_poses",
+]
+
+#: SMPL+H G has 52 joints (22 body + 2 × 15 hand): ``poses`` has 156 columns.
+N_SMPLH_JOINTS = 52
+#: Extra key holding the subject's rest joints (9, 3).
+REST_JOINTS_KEY = "gaitnet_rest_joints"
+#: Split → sub-dataset folder.
+SPLIT_DATASETS: dict[str, str] = {
+    "train": "SynthWalkTrain",
+    "val": "SynthWalkVal",
+    "test": "SynthWalkTest",
+}
+#: The loader's split mapping for these folders.
+SYNTH_DATASET_SPLIT = DatasetSplit(val=(SPLIT_DATASETS["val"],), test=(SPLIT_DATASETS["test"],))
+
+Band = tuple[float, float]
+logger = logging.getLogger(__name__)
+_MAX_ATTEMPTS = 20
+
+
+@dataclass(frozen=True)
+class SyntheticWalksConfig:
+    """What :func:`make_synthetic_walks` generates (lengths m, speeds m/s, angles deg).
+
+    Subjects per split and walks per subject; heights uniform in ``height_range_m``; each
+    walk's speed uniform over the union of its split's speed bands; walk length uniform in
+    ``walk_length_range_m``; with probability ``turn_probability`` the path turns by an angle
+    uniform in ``turn_range_deg`` (random sign); step-to-step variability (step length / time
+    coefficients of variation, step-width spread) uniform in the ``*_range`` values; pelvis
+    amplitudes, toe-out and stance timing are varied around the simulator's defaults; the
+    sampling rate is drawn from ``mocap_rates_hz``.
+    """
+
+    seed: int = 0
+    train_subjects: int = 40
+    val_subjects: int = 8
+    test_subjects: int = 10
+    walks_per_subject: int = 3
+    height_range_m: Band = HEIGHT_RANGE_M
+    train_speed_bands: tuple[Band, ...] = ((0.6, 1.0), (1.2, 1.7))
+    test_speed_bands: tuple[Band, ...] = ((1.0, 1.2),)
+    walk_length_range_m: Band = (6.0, 16.0)
+    turn_probability: float = 0.35
+    turn_range_deg: Band = (30.0, 180.0)
+    step_cv_range: Band = (0.01, 0.05)
+    step_width_std_range_m: Band = (0.005, 0.02)
+    mocap_rates_hz: tuple[float, ...] = (60.0, 100.0, 120.0)
+
+    def __post_init__(self) -> None:
+        for name in ("train_subjects", "val_subjects", "test_subjects", "walks_per_subject"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < 0:
+                raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
+        for name in ("train_speed_bands", "test_speed_bands"):
+            bands = getattr(self, name)
+            if not bands or any(not 0.6 <= lo < hi <= 1.7 for lo, hi in bands):
+                raise ValueError(f"{name} must be non-empty bands within 0.6–1.7 m/s: {bands}")
+        for lo, hi in self.train_speed_bands:
+            for tlo, thi in self.test_speed_bands:
+                if lo < thi and tlo < hi:
+                    raise ValueError(
+                        f"test speed band {(tlo, thi)} overlaps training band {(lo, hi)}"
+                    )
+        if not self.mocap_rates_hz or min(self.mocap_rates_hz) < 30.0:
+            raise ValueError(f"mocap_rates_hz must be rates >= 30 Hz, got {self.mocap_rates_hz}")
+        if not 0.0 <= self.turn_probability <= 1.0:
+            raise ValueError(f"turn_probability must be in [0, 1], got {self.turn_probability}")
+
+
+@dataclass(frozen=True)
+class SyntheticClip:
+    """One written clip (a row of ``manifest.json``)."""
+
+    path: str  # relative to the root
+    split: str
+    dataset: str
+    subject: str
+    height_m: float
+    speed_mps: float
+    turn_deg: float
+    walk_length_m: float
+    mocap_framerate: float
+    n_frames: int
+    duration_s: float
+
+
+@dataclass(frozen=True)
+class SyntheticWalksReport:
+    """What :func:`make_synthetic_walks` wrote."""
+
+    root: Path
+    clips: tuple[SyntheticClip, ...]
+
+    def count(self, split: str) -> tuple[int, float]:
+        """Clips and minutes of motion in ``split``."""
+        rows = [c for c in self.clips if c.split == split]
+        return len(rows), sum(c.duration_s for c in rows) / 60.0
+
+
+def _uniform_in_bands(rng: np.random.Generator, bands: Iterable[Band]) -> float:
+    """Uniform over the union of disjoint intervals (weighted by their widths)."""
+    bands = list(bands)
+    widths = np.array([hi - lo for lo, hi in bands])
+    u = float(rng.uniform(0.0, widths.sum()))
+    for (lo, _), w in zip(bands, widths, strict=True):
+        if u <= w:
+            return float(lo + u)
+        u -= float(w)
+    return float(bands[-1][1])
+
+
+def sample_gait_config(
+    rng: np.random.Generator, cfg: SyntheticWalksConfig, speed_bands: tuple[Band, ...]
+) -> GaitConfig:
+    """A random :class:`GaitConfig` for one walk (speed from ``speed_bands``).
+
+    Style parameters the installed generator does not have are left out (the simulator
+    evolves; the draws from ``rng`` stay the same either way).
+    """
+    turn = 0.0
+    if rng.uniform() < cfg.turn_probability:
+        turn = float(rng.uniform(*cfg.turn_range_deg)) * float(rng.choice([-1.0, 1.0]))
+    stance = float(rng.uniform(0.58, 0.64))
+    heel_off = float(rng.uniform(0.34, 0.42))
+    values: dict[str, float] = {
+        "speed_mps": _uniform_in_bands(rng, speed_bands),
+        "walk_length_m": float(rng.uniform(*cfg.walk_length_range_m)),
+        "step_width_m": float(rng.uniform(0.06, 0.14)),
+        "step_length_cv": float(rng.uniform(*cfg.step_cv_range)),
+        "step_time_cv": float(rng.uniform(*cfg.step_cv_range)),
+        "step_width_std_m": float(rng.uniform(*cfg.step_width_std_range_m)),
+        "stand_start_s": float(rng.uniform(1.0, 1.5)),
+        "stand_end_s": float(rng.uniform(1.0, 1.5)),
+        "turn_deg": turn,
+        "toe_out_deg": float(rng.uniform(0.0, 10.0)),
+        # Style parameters, varied around the simulator's defaults where the generator has them.
+        "pelvis_vertical_m": float(rng.uniform(0.015, 0.025)),
+        "pelvis_lateral_m": float(rng.uniform(0.015, 0.025)),
+        "pelvis_rotation_deg": float(rng.uniform(3.0, 5.0)),
+        "pelvis_obliquity_deg": float(rng.uniform(3.0, 5.0)),
+        "pelvis_tilt_deg": float(rng.uniform(1.0, 3.0)),
+        "toe_clearance_m": float(rng.uniform(0.01, 0.02)),
+        "heel_strike_pitch_deg": float(rng.uniform(14.0, 22.0)),
+        "toe_off_pitch_deg": float(rng.uniform(30.0, 40.0)),
+        "stance_fraction": stance,
+        "heel_off_fraction": heel_off,
+        "min_heel_off_fraction": 0.30,
+    }
+    known = {f.name for f in fields(GaitConfig)}
+    return GaitConfig(**{k: v for k, v in values.items() if k in known})
+
+
+def walk_to_amass(walk: Walk, fps: float) -> dict[str, np.ndarray]:
+    """The AMASS SMPL+H G arrays of a whole walk sampled at ``fps`` (module docstring keys).
+
+    Frame ``n`` is the simulator's pose at ``t = n / fps`` for ``n = 0 .. floor(duration·fps)``.
+    """
+    if not fps > 0:
+        raise ValueError(f"fps must be positive, got {fps}")
+    t = np.arange(int(math.floor(walk.duration_s * fps + 1e-9)) + 1) / fps
+    root_orient, trans, joint_aa = walk.smpl_pose(t)
+    T = t.shape[0]
+    poses = np.zeros((T, N_SMPLH_JOINTS, 3))
+    poses[:, 0] = root_orient
+    poses[:, list(ROTATED_SMPL_INDICES)] = joint_aa
+    return {
+        "poses": poses.reshape(T, 3 * N_SMPLH_JOINTS),
+        "trans": np.asarray(trans, dtype=np.float64),
+        "betas": np.zeros(16),
+        "dmpls": np.zeros((T, 8)),
+        "gender": np.array("neutral"),
+        "mocap_framerate": np.array(float(fps)),
+        REST_JOINTS_KEY: np.array(walk.skeleton.rest_joints, dtype=np.float64),
+    }
+
+
+def write_amass_poses(path: str | Path, arrays: dict[str, np.ndarray]) -> Path:
+    """Write ``arrays`` as an (uncompressed, pickle-free) ``.npz``, atomically."""
+    path = Path(path)
+    with atomic_open(path, "wb") as handle:
+        np.savez(handle, **arrays)
+    return path
+
+
+def _generate(
+    rng: np.random.Generator,
+    subject: Subject,
+    cfg: SyntheticWalksConfig,
+    bands: tuple[Band, ...],
+    what: str,
+) -> tuple[GaitConfig, Walk]:
+    """One walk; a gait draw the generator cannot realise is replaced by a fresh draw."""
+    for attempt in range(1, _MAX_ATTEMPTS + 1):
+        gait = sample_gait_config(rng, cfg, bands)
+        try:
+            return gait, generate_walk(subject, gait, rng)
+        except (RuntimeError, ValueError) as exc:
+            logger.warning("%s: gait draw %d rejected by the generator (%s)", what, attempt, exc)
+    raise RuntimeError(f"{what}: the gait generator failed {_MAX_ATTEMPTS} draws in a row")
+
+
+def make_synthetic_walks(
+    out_root: str | Path,
+    cfg: SyntheticWalksConfig | None = None,
+    *,
+    progress: Callable[[Iterable[tuple[str, int]], int], Iterable[tuple[str, int]]] | None = None,
+) -> SyntheticWalksReport:
+    """Generate the three sub-datasets under ``out_root`` and a ``manifest.json``.
+
+    Deterministic given ``cfg.seed``: every subject has its own child generator of
+    ``SeedSequence(seed)``, so a subject's clips do not depend on how many subjects come
+    before it in other splits. ``progress(iterable, total)`` may wrap the subject loop.
+    """
+    cfg = SyntheticWalksConfig() if cfg is None else cfg
+    root = Path(out_root)
+    jobs = [
+        (split, i)
+        for split, n in (
+            ("train", cfg.train_subjects),
+            ("val", cfg.val_subjects),
+            ("test", cfg.test_subjects),
+        )
+        for i in range(n)
+    ]
+    split_code = {"train": 0, "val": 1, "test": 2}
+    iterator: Iterable[tuple[str, int]] = jobs if progress is None else progress(jobs, len(jobs))
+    clips: list[SyntheticClip] = []
+    for split, i in iterator:
+        rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, split_code[split], i]))
+        dataset = SPLIT_DATASETS[split]
+        subject_id = f"{split}_s{i:03d}"
+        subject = sample_subject(rng, cfg.height_range_m)
+        bands = cfg.test_speed_bands if split == "test" else cfg.train_speed_bands
+        for w in range(cfg.walks_per_subject):
+            gait, walk = _generate(rng, subject, cfg, bands, f"{subject_id} walk {w}")
+            fps = float(rng.choice(np.asarray(cfg.mocap_rates_hz, dtype=np.float64)))
+            arrays = walk_to_amass(walk, fps)
+            rel = f"{dataset}/{subject_id}/{subject_id}_{w:02d}_walk_poses.npz"
+            write_amass_poses(root / rel, arrays)
+            n_frames = int(arrays["poses"].shape[0])
+            clips.append(
+                SyntheticClip(
+                    path=rel,
+                    split=split,
+                    dataset=dataset,
+                    subject=subject_id,
+                    height_m=round(subject.height_m, 4),
+                    speed_mps=round(gait.speed_mps, 4),
+                    turn_deg=round(gait.turn_deg, 2),
+                    walk_length_m=round(gait.walk_length_m, 3),
+                    mocap_framerate=fps,
+                    n_frames=n_frames,
+                    duration_s=round((n_frames - 1) / fps, 4),
+                )
+            )
+    manifest = {
+        "config": _jsonable(asdict(cfg)),
+        "datasets": SPLIT_DATASETS,
+        "clips": [asdict(c) for c in clips],
+    }
+    atomic_write_text(root / "manifest.json", json.dumps(manifest, indent=1) + "\n")
+    return SyntheticWalksReport(root=root, clips=tuple(clips))
+
+
+def _jsonable(value: object) -> object:
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    return value

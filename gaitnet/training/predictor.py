@@ -1,0 +1,230 @@
+"""Typed training config and data of the DCT-GCN motion predictor (thesis sec. 4.2).
+
+:class:`PredictorTrainingConfig` is what ``configs/predictor/*.yaml`` hold (every key is
+documented in ``docs/predictor.md``); ``train/predictor.py`` reads it with
+:func:`gaitnet.config.load_config`. The defaults are the thesis's / LTD's training settings:
+Adam 5e-4, ×0.96 every 2 epochs (StepLR), batch 32, 50 epochs, gradient-norm clip 1 (LTD),
+10 past → 10 future poses at 30 fps, DCT depth 20, hidden 256, 12 blocks, dropout 0.5.
+
+Data: a prepared file of :func:`gaitnet.motion.amass.prepare_walking_subset` (from AMASS or
+from the synthetic clips of :mod:`gaitnet.motion.synthetic`). The split mapping is a config
+value (``data.split``, a :class:`~gaitnet.motion.amass.DatasetSplit`): when given, each
+clip's split is recomputed from its sub-dataset, otherwise the split stored in the file is
+used. Windows are heading-normalised (:class:`~gaitnet.motion.amass.WalkingWindows`) and, with
+``data.preload``, materialised once as one float32 tensor.
+
+Skeleton: the MPJPE term (eq. 4.5) and the evaluation use ONE skeleton for every clip (as
+LTD/HisRepItself use SMPL's mean shape on AMASS): the body model's mean shape when
+``loss.body_model`` names an SMPL-family file, else the built-in anthropometric skeleton of
+``loss.skeleton_height_m``. The net predicts rotations, so the skeleton only sets how angle
+errors weigh as position errors.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+
+from gaitnet.motion.amass import DatasetSplit, PreparedWalking, WalkingWindows, load_prepared
+from gaitnet.motion.gcn import NODE_JOINTS, PredictorConfig
+from gaitnet.motion.skeleton import LowerBodySkeleton, builtin_skeleton
+
+__all__ = [
+    "DataConfig",
+    "EvalConfig",
+    "LossConfig",
+    "OptimConfig",
+    "PoseWindows",
+    "PredictorTrainingConfig",
+    "TrainConfig",
+    "build_windows",
+    "loss_skeleton",
+    "prepared_with_split",
+]
+
+logger = logging.getLogger(__name__)
+SplitName = Literal["train", "val", "test"]
+
+
+@dataclass(frozen=True)
+class DataConfig:
+    """Prepared walking file, split mapping and windowing."""
+
+    prepared: Path = Path("data/cache/synthwalk_walking.npz")
+    split: DatasetSplit | None = None
+    train_stride: int = 2
+    eval_stride: int = 5
+    normalise_heading: bool = True
+    preload: bool = True
+    num_workers: int = 0
+
+    def __post_init__(self) -> None:
+        if self.train_stride < 1 or self.eval_stride < 1:
+            raise ValueError("data.train_stride and data.eval_stride must be >= 1")
+        if self.num_workers < 0:
+            raise ValueError("data.num_workers must be >= 0")
+
+
+@dataclass(frozen=True)
+class LossConfig:
+    """``loss = w_mpjpe · MPJPE (4.5, m) + w_mae · MAE (4.6, rad)`` and the FK skeleton."""
+
+    w_mpjpe: float = 1.0
+    w_mae: float = 0.1
+    skeleton_height_m: float = 1.75
+    body_model: Path | None = None
+    body_model_gender: str = "neutral"
+
+    def __post_init__(self) -> None:
+        if self.w_mpjpe < 0 or self.w_mae < 0 or self.w_mpjpe + self.w_mae <= 0:
+            raise ValueError("loss weights must be >= 0 and not both zero")
+
+
+@dataclass(frozen=True)
+class OptimConfig:
+    """Adam with a step decay (thesis: 5e-4, ×0.96 every 2 epochs) and gradient clipping."""
+
+    lr: float = 5e-4
+    weight_decay: float = 0.0
+    lr_step_epochs: int = 2
+    lr_gamma: float = 0.96
+    grad_clip_norm: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not self.lr > 0 or self.lr_step_epochs < 1 or not 0 < self.lr_gamma <= 1:
+            raise ValueError("need lr > 0, lr_step_epochs >= 1 and 0 < lr_gamma <= 1")
+        if self.grad_clip_norm < 0:
+            raise ValueError("optim.grad_clip_norm must be >= 0 (0 disables clipping)")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Loop settings."""
+
+    epochs: int = 50
+    batch_size: int = 32
+    eval_batch_size: int = 512
+    seed: int = 0
+    num_threads: int = 0
+    device: str = "auto"
+    tensorboard: bool = True
+
+    def __post_init__(self) -> None:
+        if self.epochs < 1 or self.batch_size < 1 or self.eval_batch_size < 1:
+            raise ValueError("train.epochs, train.batch_size, train.eval_batch_size must be >= 1")
+        if self.num_threads < 0:
+            raise ValueError("train.num_threads must be >= 0 (0: torch's default)")
+
+
+@dataclass(frozen=True)
+class EvalConfig:
+    """Final evaluation (``eval.json``) after training: split and window stride."""
+
+    split: SplitName = "test"
+    stride: int = 1
+    batch_size: int = 2048
+
+    def __post_init__(self) -> None:
+        if self.stride < 1 or self.batch_size < 1:
+            raise ValueError("eval.stride and eval.batch_size must be >= 1")
+
+
+@dataclass(frozen=True)
+class PredictorTrainingConfig:
+    """A predictor training run: ``<output_dir>/<name>/`` holds its outputs."""
+
+    name: str
+    output_dir: Path = Path("runs/predictor")
+    data: DataConfig = field(default_factory=DataConfig)
+    model: PredictorConfig = field(default_factory=PredictorConfig)
+    loss: LossConfig = field(default_factory=LossConfig)
+    optim: OptimConfig = field(default_factory=OptimConfig)
+    train: TrainConfig = field(default_factory=TrainConfig)
+    eval: EvalConfig = field(default_factory=EvalConfig)
+
+    def __post_init__(self) -> None:
+        if not self.name or "/" in self.name or self.name.startswith("."):
+            raise ValueError(f"name must be a plain folder name, got {self.name!r}")
+        if self.model.n_nodes != 3 * len(NODE_JOINTS):
+            raise ValueError(
+                f"model.n_nodes must be {3 * len(NODE_JOINTS)} (7 joints × 3 axis-angle "
+                f"components), got {self.model.n_nodes}"
+            )
+
+    @property
+    def run_dir(self) -> Path:
+        return self.output_dir / self.name
+
+
+def prepared_with_split(prepared: PreparedWalking, split: DatasetSplit | None) -> PreparedWalking:
+    """``prepared`` with each clip's split recomputed from its sub-dataset by ``split``."""
+    if split is None:
+        return prepared
+    splits = np.array([split.split_of(str(d)) for d in prepared.clip_dataset], dtype=str)
+    return replace(prepared, clip_split=splits)
+
+
+class PoseWindows(Dataset):
+    """Pose windows (W, 21) float32 tensors; preloaded into one tensor or served lazily."""
+
+    def __init__(self, windows: WalkingWindows, preload: bool) -> None:
+        self.windows = windows
+        self.poses: torch.Tensor | None = None
+        if preload:
+            self.poses = torch.stack([windows[i]["poses"] for i in range(len(windows))])
+
+    def __len__(self) -> int:
+        return len(self.windows)
+
+    def __getitem__(self, i: int) -> torch.Tensor:
+        if self.poses is not None:
+            return self.poses[i]
+        return self.windows[i]["poses"]
+
+    def as_array(self) -> np.ndarray:
+        """All windows (N, W, 21) as a float64 array (for :mod:`gaitnet.motion.evaluation`)."""
+        if self.poses is not None:
+            return self.poses.numpy().astype(np.float64)
+        return np.stack([self[i].numpy() for i in range(len(self))]).astype(np.float64)
+
+
+def build_windows(
+    cfg: PredictorTrainingConfig,
+    split: SplitName,
+    stride: int,
+    prepared: PreparedWalking | None = None,
+) -> PoseWindows:
+    """Windows of ``n_past + n_future`` frames of ``split`` from the configured prepared file."""
+    if prepared is None:
+        prepared = prepared_with_split(load_prepared(cfg.data.prepared), cfg.data.split)
+    windows = WalkingWindows(
+        prepared,
+        split,
+        n_past=cfg.model.n_past,
+        n_future=cfg.model.n_future,
+        stride=stride,
+        normalise_heading=cfg.data.normalise_heading,
+    )
+    logger.info(
+        "%s: %d windows from %d clips (stride %d)",
+        split,
+        len(windows),
+        int(np.sum(prepared.clip_split == split)),
+        stride,
+    )
+    return PoseWindows(windows, cfg.data.preload)
+
+
+def loss_skeleton(cfg: LossConfig) -> LowerBodySkeleton:
+    """The skeleton of the MPJPE term and of the evaluation (module docstring)."""
+    if cfg.body_model is not None:
+        from gaitnet.motion.body_model import lower_body_skeleton
+
+        return lower_body_skeleton(cfg.body_model, cfg.body_model_gender)
+    return builtin_skeleton(cfg.skeleton_height_m)

@@ -1,0 +1,284 @@
+"""Training library and train/predictor.py: outputs, resume, checkpoints, metrics, overfitting."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import logging
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+import yaml
+from scipy.spatial.transform import Rotation
+
+from gaitnet.config import load_config
+from gaitnet.errors import GaitnetError
+from gaitnet.motion.amass import DatasetSplit, prepare_walking_subset
+from gaitnet.training.checkpoint import (
+    CHECKPOINT_KEYS,
+    CheckpointError,
+    check_weights_only_safe,
+    load_checkpoint,
+    save_checkpoint,
+)
+from gaitnet.training.distributed import dist_info_from_env
+from gaitnet.training.logs import RankZeroFilter
+from gaitnet.training.metrics import MetricsLogger, read_metrics
+from gaitnet.training.predictor import PredictorTrainingConfig
+
+ROOT = Path(__file__).parents[1]
+# Upright SMPL body facing world +x (z up): R_root columns [0,1,0], [0,0,1], [1,0,0].
+_UPRIGHT = Rotation.from_matrix(np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]))
+
+
+def _load_script():
+    spec = importlib.util.spec_from_file_location(
+        "train_predictor", ROOT / "train" / "predictor.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+script = _load_script()
+
+
+def _write_clip(path: Path, seed: int, fps: float = 60.0, seconds: float = 4.0) -> None:
+    """A gait-like AMASS ``*_poses.npz``: sinusoidal hips/knees/ankles, yaw sway, forward walk."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * fps)) / fps
+    f = rng.uniform(0.8, 1.1)  # strides per second
+    ph = 2 * np.pi * f * t + rng.uniform(0, 2 * np.pi)
+    poses = np.zeros((t.size, 52, 3))
+    yaw = Rotation.from_rotvec(np.stack([0 * t, 0 * t, 0.08 * np.sin(ph)], axis=1))
+    poses[:, 0] = (yaw * _UPRIGHT).as_rotvec()
+    for side, sign in ((0, 1.0), (1, -1.0)):
+        p = ph + side * np.pi
+        poses[:, 1 + side, 0] = -0.35 * np.sin(p)  # hip flexion is a negative x rotation
+        poses[:, 4 + side, 0] = 0.5 * (1 + np.sin(p + 1.2))  # knee flexion positive x
+        poses[:, 7 + side, 0] = 0.15 * np.sin(p - 0.5)
+        poses[:, 1 + side, 2] = sign * 0.05 * np.cos(p)
+    trans = np.stack([1.2 * t, 0.02 * np.sin(ph), 0.9 + 0.02 * np.cos(2 * ph)], axis=1)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(
+        path,
+        poses=poses.reshape(t.size, 156),
+        trans=trans,
+        betas=np.zeros(16),
+        dmpls=np.zeros((t.size, 8)),
+        gender=np.array("neutral"),
+        mocap_framerate=np.array(fps),
+    )
+
+
+@pytest.fixture(scope="module")
+def prepared(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("amass")
+    for i in range(3):
+        _write_clip(root / "TinyTrain" / f"s{i}" / f"c{i}_walk_poses.npz", seed=i)
+    _write_clip(root / "TinyVal" / "v" / "v_walk_poses.npz", seed=10)
+    _write_clip(root / "TinyTest" / "t" / "t_walk_poses.npz", seed=11, fps=100.0)
+    out = root.parent / "tiny_walking.npz"
+    # The prepared file stores every clip as training; the config's data.split decides.
+    prepare_walking_subset(root, out, split=DatasetSplit(val=(), test=()))
+    return out
+
+
+def _config(tmp: Path, prepared: Path, name: str = "tiny", **extra) -> Path:
+    cfg = {
+        "name": name,
+        "output_dir": str(tmp / "runs"),
+        "data": {
+            "prepared": str(prepared),
+            "split": {"val": ["TinyVal"], "test": ["TinyTest"]},
+            "train_stride": 3,
+            "eval_stride": 5,
+        },
+        "model": {"hidden": 16, "n_blocks": 1, "dropout": 0.2},
+        "train": {"epochs": 2, "batch_size": 8, "num_threads": 1, "device": "cpu", **extra},
+        "eval": {"stride": 4},
+    }
+    path = tmp / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    return path
+
+
+def _run(*argv: str) -> int:
+    return script.main(script.get_args_parser().parse_args(list(argv)))
+
+
+@pytest.fixture(scope="module")
+def two_epochs(tmp_path_factory, prepared) -> Path:
+    tmp = tmp_path_factory.mktemp("run2")
+    assert _run("--config", str(_config(tmp, prepared))) == 0
+    return tmp / "runs" / "tiny"
+
+
+def test_two_epoch_run_writes_everything(two_epochs: Path) -> None:
+    for name in ("metrics.csv", "last.pt", "best.pt", "config.yaml", "eval.json", "train.log"):
+        assert (two_epochs / name).is_file(), name
+    assert list((two_epochs / "tb").iterdir())
+    rows = read_metrics(two_epochs / "metrics.csv")
+    assert [r["epoch"] for r in rows] == ["0", "1"]
+    assert {"train/loss", "val/mpjpe_m", "lr"} <= set(rows[0])
+    cfg = load_config(PredictorTrainingConfig, two_epochs / "config.yaml")
+    assert cfg.model.hidden == 16 and cfg.data.split.test == ("TinyTest",)
+    for ckpt in ("last.pt", "best.pt"):
+        state = torch.load(two_epochs / ckpt, weights_only=True)
+        assert set(CHECKPOINT_KEYS) <= set(state)
+    assert torch.load(two_epochs / "last.pt", weights_only=True)["epoch"] == 1
+    result = json.loads((two_epochs / "eval.json").read_text())
+    assert result["split"] == "test"
+    assert set(result["methods"]) == {"gcn", "zero_velocity", "constant_velocity"}
+    assert all(len(m["mpjpe_m"]) == 10 for m in result["methods"].values())
+
+
+def test_resume_continues_with_identical_state(tmp_path: Path, prepared, two_epochs) -> None:
+    config = _config(tmp_path, prepared)
+    assert _run("--config", str(config), "train.epochs=1") == 0
+    run = tmp_path / "runs" / "tiny"
+    first = torch.load(run / "last.pt", weights_only=True)
+    assert first["epoch"] == 0
+    with pytest.raises(GaitnetError, match="--resume"):
+        _run("--config", str(config))  # never silently overwrite finished work
+    # Architecture keys come from the checkpoint even if the config says otherwise.
+    assert _run("--config", str(config), "--resume", "train.epochs=2", "model.hidden=32") == 0
+    resumed = torch.load(run / "last.pt", weights_only=True)
+    straight = torch.load(two_epochs / "last.pt", weights_only=True)
+    assert resumed["epoch"] == 1
+    for key, value in straight["model"].items():
+        torch.testing.assert_close(resumed["model"][key], value, rtol=0, atol=0)
+    assert resumed["scheduler"] == straight["scheduler"]
+    opt_a, opt_b = resumed["optimizer"], straight["optimizer"]
+    assert opt_a["param_groups"] == opt_b["param_groups"]
+    for pid, st in opt_b["state"].items():
+        for k, v in st.items():
+            torch.testing.assert_close(opt_a["state"][pid][k], v, rtol=0, atol=0)
+    assert [r["epoch"] for r in read_metrics(run / "metrics.csv")] == ["0", "1"]
+
+
+def test_loss_decreases_when_overfitting_a_tiny_set(prepared) -> None:
+    cfg = load_config(
+        PredictorTrainingConfig,
+        None,
+        [f"data.prepared={prepared}", "name=o", "model.hidden=32", "model.n_blocks=1",
+         "model.dropout=0.0", "optim.lr=0.003", "data.split.val=[TinyVal]",
+         "data.split.test=[TinyTest]"],
+    )  # fmt: skip
+    from torch.utils.data import DataLoader
+
+    from gaitnet.motion.gcn import DCTGCN
+    from gaitnet.training.predictor import build_windows
+
+    torch.manual_seed(0)
+    ds = build_windows(cfg, "train", 10)
+    loader = DataLoader(ds, batch_size=16, shuffle=False, drop_last=True)
+    model = DCTGCN(cfg.model)
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.optim.lr)
+    skel = torch.tensor(np.array(script.loss_skeleton(cfg.loss).rest_joints), dtype=torch.float32)
+    losses = [
+        script.train_one_epoch(model, opt, loader, skel, cfg, e, "cpu", False)["train/loss"]
+        for e in range(25)
+    ]
+    assert losses[-1] < 0.5 * losses[0], losses
+
+
+def test_eval_only_from_checkpoint(tmp_path: Path, prepared, two_epochs: Path) -> None:
+    out = tmp_path / "e.json"
+    config = _config(tmp_path, prepared)
+    assert _run("--config", str(config), "--eval-only", "--checkpoint",
+                str(two_epochs / "best.pt"), "--out", str(out), "eval.split=val") == 0  # fmt: skip
+    result = json.loads(out.read_text())
+    assert result["split"] == "val" and len(result["methods"]["gcn"]["mpjpe_m"]) == 10
+    with pytest.raises(CheckpointError, match="does not exist"):
+        _run("--config", str(config), "--eval-only", "--checkpoint", str(tmp_path / "no.pt"))
+
+
+def test_cli_reports_config_errors(tmp_path: Path, prepared) -> None:
+    config = _config(tmp_path, prepared)
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "train" / "predictor.py"), "--config", str(config),
+         "train.epoch=3"],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert done.returncode == 1
+    assert done.stderr.startswith("error: ") and "train.epoch" in done.stderr
+
+
+def test_checkpoint_helpers(tmp_path: Path) -> None:
+    state = {k: 0 for k in ("model", "optimizer", "scheduler", "epoch", "best_metric")}
+    state.update(best_epoch=0, config={"a": [1, 2.0, None]}, git_hash="x", t=torch.ones(2))
+    save_checkpoint(state, tmp_path / "c.pt")
+    assert load_checkpoint(tmp_path / "c.pt")["config"] == {"a": [1, 2.0, None]}
+    with pytest.raises(TypeError, match=r"checkpoint\['bad'\]"):
+        check_weights_only_safe({"bad": Path("x")})
+    with pytest.raises(TypeError):
+        save_checkpoint({**state, "bad": object()}, tmp_path / "d.pt")
+    assert not (tmp_path / "d.pt").exists()
+    torch.save({"model": 1}, tmp_path / "e.pt")
+    with pytest.raises(CheckpointError, match="lacks key"):
+        load_checkpoint(tmp_path / "e.pt")
+
+
+def test_metrics_csv_is_append_safe_on_resume(tmp_path: Path) -> None:
+    m = MetricsLogger(tmp_path, ["train/loss"], tensorboard=False)
+    for e in range(3):
+        m.log(e, {"train/loss": 1.0 / (e + 1)})
+    m.close()
+    # Interrupted after epoch 2's row but before its checkpoint: resume at epoch 2.
+    m = MetricsLogger(tmp_path, ["train/loss"], start_epoch=2, tensorboard=False)
+    assert [r["epoch"] for r in read_metrics(tmp_path / "metrics.csv")] == ["0", "1"]
+    m.log(2, {"train/loss": 0.3})
+    assert [r["epoch"] for r in read_metrics(tmp_path / "metrics.csv")] == ["0", "1", "2"]
+    with pytest.raises(KeyError):
+        m.log(3, {"nope": 1.0})
+
+
+def test_torchrun_environment_and_rank_filter(monkeypatch) -> None:
+    for k in ("RANK", "WORLD_SIZE", "LOCAL_RANK"):
+        monkeypatch.delenv(k, raising=False)
+    info = dist_info_from_env()
+    assert (info.rank, info.world_size, info.distributed, info.is_main) == (0, 1, False, True)
+    monkeypatch.setenv("RANK", "1")
+    monkeypatch.setenv("WORLD_SIZE", "2")
+    monkeypatch.setenv("LOCAL_RANK", "1")
+    info = dist_info_from_env()
+    assert (info.rank, info.world_size, info.local_rank, info.distributed) == (1, 2, 1, True)
+    monkeypatch.setenv("RANK", "2")
+    with pytest.raises(ValueError, match="inconsistent"):
+        dist_info_from_env()
+    rec = logging.LogRecord("x", logging.INFO, "", 0, "m", (), None)
+    warn = logging.LogRecord("x", logging.WARNING, "", 0, "m", (), None)
+    assert RankZeroFilter(0).filter(rec) and not RankZeroFilter(1).filter(rec)
+    assert RankZeroFilter(1).filter(warn)
+
+
+def _leaf_keys(cls: type, prefix: str = "") -> list[str]:
+    import dataclasses
+    import typing
+
+    keys = []
+    hints = typing.get_type_hints(cls)
+    for f in dataclasses.fields(cls):
+        tp = hints[f.name]
+        inner = [a for a in typing.get_args(tp) if dataclasses.is_dataclass(a)]
+        if dataclasses.is_dataclass(tp) or inner:
+            if inner:  # an optional section (e.g. data.split) is a key itself
+                keys.append(f"{prefix}{f.name}")
+            keys += _leaf_keys(inner[0] if inner else tp, f"{prefix}{f.name}.")
+        else:
+            keys.append(f"{prefix}{f.name}")
+    return keys
+
+
+def test_every_predictor_config_key_is_documented() -> None:
+    text = (ROOT / "docs" / "predictor.md").read_text()
+    missing = [k for k in _leaf_keys(PredictorTrainingConfig) if f"`{k}`" not in text]
+    assert not missing, f"undocumented keys in docs/predictor.md: {missing}"
+    for cfg in sorted((ROOT / "configs" / "predictor").glob("*.yaml")):
+        assert cfg.read_text().startswith("#"), f"{cfg.name} needs a header comment"
+        load_config(PredictorTrainingConfig, cfg)

@@ -1,0 +1,394 @@
+"""Train the DCT-GCN lower-body motion predictor (thesis sec. 4.2) from a YAML config.
+
+    python train/predictor.py --config configs/predictor/dctgcn_synthwalk_small.yaml
+    python train/predictor.py --config configs/predictor/dctgcn_synthwalk_small.yaml --resume
+    python train/predictor.py --config C.yaml --resume --checkpoint other/last.pt train.epochs=80
+    python train/predictor.py --config C.yaml train.epochs=5 optim.lr=1e-3     # overrides
+    torchrun --nproc_per_node 2 train/predictor.py --config C.yaml              # DDP
+    python train/predictor.py --config C.yaml --eval-only --checkpoint runs/predictor/N/best.pt
+    python train/predictor.py --config C.yaml --eval-only --onnx models/predictor/N.onnx
+
+Outputs in ``<output_dir>/<name>/``: config.yaml (resolved), train.log, metrics.csv, tb/,
+last.pt, best.pt (lowest validation MPJPE over the future frames) and eval.json (per-horizon
+MPJPE / MAE of the GCN and the zero- and constant-velocity baselines on ``eval.split``, from
+best.pt). See docs/predictor.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import torch
+from torch.utils.data import DataLoader, DistributedSampler
+from tqdm import tqdm
+
+from gaitnet.config import config_to_dict, load_config, save_config
+from gaitnet.errors import GaitnetError
+from gaitnet.io.atomic import atomic_write_text
+from gaitnet.motion.amass import load_prepared
+from gaitnet.motion.evaluation import (
+    Predictor,
+    evaluate_predictors,
+    onnx_predictor,
+    torch_predictor,
+)
+from gaitnet.motion.gcn import DCTGCN, PredictorConfig
+from gaitnet.motion.losses import joint_positions, mean_angle_error, motion_loss
+from gaitnet.training.checkpoint import git_hash, load_checkpoint, save_checkpoint
+from gaitnet.training.distributed import (
+    all_reduce_sum,
+    barrier,
+    cleanup_distributed,
+    init_distributed,
+)
+from gaitnet.training.logs import setup_logging
+from gaitnet.training.metrics import MetricsLogger
+from gaitnet.training.predictor import (
+    PredictorTrainingConfig,
+    build_windows,
+    loss_skeleton,
+    prepared_with_split,
+)
+from gaitnet.training.seeding import seed_everything
+
+logger = logging.getLogger("train.predictor")
+METRICS = (
+    "lr",
+    "train/loss",
+    "train/mpjpe_m",
+    "train/mae_rad",
+    "val/loss",
+    "val/mpjpe_m",
+    "val/mae_rad",
+    "val/mpjpe_last_m",
+    "time/epoch_s",
+)
+
+
+def train_one_epoch(
+    model: torch.nn.Module,
+    optimizer: torch.optim.Optimizer,
+    loader: DataLoader,
+    skeleton: torch.Tensor,
+    cfg: PredictorTrainingConfig,
+    epoch: int,
+    device: torch.device | str,
+    show: bool,
+) -> dict[str, float]:
+    """One pass over the training windows; loss (4.5)+(4.6) on all T + K output frames."""
+    model.train()
+    n_past = cfg.model.n_past
+    sums = torch.zeros(4, dtype=torch.float64, device=device)  # loss, mpjpe, mae, windows
+    bar = tqdm(loader, desc=f"epoch {epoch}", leave=False, disable=not show, mininterval=2.0)
+    for i, poses in enumerate(bar):
+        poses = poses.to(device, non_blocking=True)
+        out = model(poses[:, :n_past])
+        loss = motion_loss(out, poses, skeleton, w_mpjpe=cfg.loss.w_mpjpe, w_mae=cfg.loss.w_mae)
+        optimizer.zero_grad(set_to_none=True)
+        loss.total.backward()
+        if cfg.optim.grad_clip_norm > 0:
+            torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.optim.grad_clip_norm)
+        optimizer.step()
+        b = poses.shape[0]
+        terms = torch.stack([loss.total.detach(), loss.mpjpe.detach(), loss.mae.detach()])
+        sums[:3] += terms.double() * b
+        sums[3] += b
+        if i % 50 == 0:  # a host sync: not every step
+            if not torch.isfinite(sums[0]):
+                raise FloatingPointError(f"epoch {epoch}: the loss is not finite; stopping")
+            bar.set_postfix(loss=f"{float(sums[0] / sums[3]):.4f}", refresh=False)
+    sums = all_reduce_sum(sums).cpu()
+    if not torch.isfinite(sums).all():
+        raise FloatingPointError(f"epoch {epoch}: the loss is not finite; stopping")
+    return {
+        "train/loss": float(sums[0] / sums[3]),
+        "train/mpjpe_m": float(sums[1] / sums[3]),
+        "train/mae_rad": float(sums[2] / sums[3]),
+    }
+
+
+@torch.no_grad()
+def evaluate(
+    model: torch.nn.Module,
+    loader: DataLoader,
+    skeleton: torch.Tensor,
+    cfg: PredictorTrainingConfig,
+    device: torch.device | str,
+) -> dict[str, float]:
+    """Validation loss and MPJPE / MAE of the predicted (future) frames, per horizon too."""
+    model.eval()
+    n_past, K = cfg.model.n_past, cfg.model.n_future
+    # [loss × windows, windows, MPJPE sum per horizon (K), MAE × windows]
+    sums = torch.zeros(3 + K, dtype=torch.float64, device=device)
+    for poses in loader:
+        poses = poses.to(device)
+        out = model(poses[:, :n_past])
+        loss = motion_loss(out, poses, skeleton, w_mpjpe=cfg.loss.w_mpjpe, w_mae=cfg.loss.w_mae)
+        b = poses.shape[0]
+        pred, true = out[:, n_past:], poses[:, n_past:]
+        d = torch.linalg.vector_norm(
+            joint_positions(pred, skeleton) - joint_positions(true, skeleton), dim=-1
+        )  # (B, K, 7)
+        sums[0] += loss.total.double() * b
+        sums[1] += b
+        sums[2 : 2 + K] += d.mean(dim=-1).sum(dim=0).double()
+        sums[-1] += mean_angle_error(pred, true).double() * b
+    totals = all_reduce_sum(sums).cpu()
+    n = totals[1]
+    per_h = totals[2 : 2 + K] / n
+    return {
+        "val/loss": float(totals[0] / n),
+        "val/mpjpe_m": float(per_h.mean()),
+        "val/mae_rad": float(totals[-1] / n),
+        "val/mpjpe_last_m": float(per_h[-1]),
+    }
+
+
+def final_evaluation(
+    cfg: PredictorTrainingConfig,
+    predictor: Predictor,
+    name: str,
+    out_file: Path,
+    extra: dict[str, Any],
+) -> dict[str, Any]:
+    """Per-horizon MPJPE/MAE of ``predictor`` and both baselines on ``cfg.eval.split``."""
+    prepared = prepared_with_split(load_prepared(cfg.data.prepared), cfg.data.split)
+    windows = build_windows(cfg, cfg.eval.split, cfg.eval.stride, prepared).as_array()
+    report = evaluate_predictors(
+        windows,
+        {name: predictor},
+        loss_skeleton(cfg.loss),
+        n_past=cfg.model.n_past,
+        fps=float(prepared.fps),
+        split=cfg.eval.split,
+        batch_size=cfg.eval.batch_size,
+    )
+    result = {**report.to_dict(), **extra}
+    atomic_write_text(out_file, json.dumps(result, indent=1) + "\n")
+    logger.info("%s split, %d windows; MPJPE [mm] per horizon:", cfg.eval.split, len(windows))
+    logger.info("%-18s %s", "horizon [ms]", " ".join(f"{h:6.0f}" for h in report.horizons_ms))
+    for method, m in report.methods.items():
+        logger.info("%-18s %s", method, " ".join(f"{1000 * v:6.2f}" for v in m.mpjpe_m))
+    logger.info("wrote %s", out_file)
+    return result
+
+
+def _device(name: str) -> torch.device:
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    return torch.device(name)
+
+
+def _with_checkpoint_architecture(
+    cfg: PredictorTrainingConfig, ckpt: dict[str, Any], path: str | Path
+) -> PredictorTrainingConfig:
+    """Architecture keys (``model.*``) come from the checkpoint, as nanoGPT does on resume."""
+    model = PredictorConfig(**ckpt["config"]["model"])
+    if model != cfg.model:
+        logger.warning("model keys taken from %s: %s (config had %s)", path, model, cfg.model)
+    return replace(cfg, model=model)
+
+
+def main(args: argparse.Namespace) -> int:
+    info = init_distributed()
+    cfg = load_config(PredictorTrainingConfig, args.config, args.overrides)
+    run_dir = cfg.run_dir
+    if cfg.train.num_threads > 0:
+        torch.set_num_threads(cfg.train.num_threads)
+    device = _device(cfg.train.device)
+
+    if args.eval_only:
+        setup_logging(info.rank)
+        if info.is_main:
+            return eval_only(cfg, args, device)
+        return 0
+
+    ckpt = None
+    if args.resume:
+        path = run_dir / "last.pt" if args.checkpoint is None else Path(args.checkpoint)
+        ckpt = load_checkpoint(path)
+        cfg = _with_checkpoint_architecture(cfg, ckpt, path)
+    elif (run_dir / "last.pt").exists():
+        raise GaitnetError(
+            f"{run_dir} already holds a checkpoint; pass --resume to continue it, or choose "
+            "another run name (name=...)"
+        )
+    setup_logging(info.rank, run_dir)
+    seed_everything(cfg.train.seed, info.rank)
+    logger.info("run %s on %s (%d process(es), %d threads)", run_dir, device,
+                info.world_size, torch.get_num_threads())  # fmt: skip
+
+    prepared = prepared_with_split(load_prepared(cfg.data.prepared), cfg.data.split)
+    train_ds = build_windows(cfg, "train", cfg.data.train_stride, prepared)
+    val_ds = build_windows(cfg, "val", cfg.data.eval_stride, prepared)
+    train_sampler = DistributedSampler(
+        train_ds, info.world_size, info.rank, shuffle=True, seed=cfg.train.seed, drop_last=True
+    )
+    val_sampler = DistributedSampler(val_ds, info.world_size, info.rank, shuffle=False)
+    per_rank_batch = max(1, cfg.train.batch_size // info.world_size)
+    train_loader = DataLoader(
+        train_ds, per_rank_batch, sampler=train_sampler, drop_last=True,
+        num_workers=cfg.data.num_workers,
+    )  # fmt: skip
+    val_loader = DataLoader(
+        val_ds, cfg.train.eval_batch_size, sampler=val_sampler, num_workers=cfg.data.num_workers
+    )
+
+    model = DCTGCN(cfg.model).to(device)
+    model_without_ddp = model
+    if info.distributed:
+        ids = [info.local_rank] if device.type == "cuda" else None
+        model = torch.nn.parallel.DistributedDataParallel(model, device_ids=ids)
+    optimizer = torch.optim.Adam(
+        model_without_ddp.parameters(), lr=cfg.optim.lr, weight_decay=cfg.optim.weight_decay
+    )
+    scheduler = torch.optim.lr_scheduler.StepLR(
+        optimizer, step_size=cfg.optim.lr_step_epochs, gamma=cfg.optim.lr_gamma
+    )
+    skeleton = torch.tensor(loss_skeleton(cfg.loss).rest_joints, dtype=torch.float32).to(device)
+    n_params = sum(p.numel() for p in model_without_ddp.parameters())
+    logger.info("DCTGCN %s: %d parameters", cfg.model, n_params)
+
+    start_epoch, best_metric, best_epoch = 0, math.inf, -1
+    if ckpt is not None:
+        model_without_ddp.load_state_dict(ckpt["model"])
+        optimizer.load_state_dict(ckpt["optimizer"])
+        scheduler.load_state_dict(ckpt["scheduler"])
+        start_epoch = int(ckpt["epoch"]) + 1
+        best_metric, best_epoch = float(ckpt["best_metric"]), int(ckpt["best_epoch"])
+        if "rng" in ckpt and info.rank < len(ckpt["rng"]):
+            torch.set_rng_state(ckpt["rng"][info.rank])
+        logger.info("resumed from epoch %d (best %.5f at epoch %d)", start_epoch - 1,
+                    best_metric, best_epoch)  # fmt: skip
+
+    metrics = None
+    if info.is_main:
+        save_config(cfg, run_dir / "config.yaml")
+        metrics = MetricsLogger(
+            run_dir, METRICS, start_epoch=start_epoch, tensorboard=cfg.train.tensorboard
+        )
+    commit = git_hash()
+    for epoch in range(start_epoch, cfg.train.epochs):
+        t0 = time.perf_counter()
+        train_sampler.set_epoch(epoch)
+        lr = optimizer.param_groups[0]["lr"]
+        stats = train_one_epoch(
+            model, optimizer, train_loader, skeleton, cfg, epoch, device, info.is_main
+        )
+        scheduler.step()
+        stats.update(evaluate(model_without_ddp, val_loader, skeleton, cfg, device))
+        stats.update({"lr": lr, "time/epoch_s": time.perf_counter() - t0})
+        is_best = stats["val/mpjpe_m"] < best_metric
+        if is_best:
+            best_metric, best_epoch = stats["val/mpjpe_m"], epoch
+        # Every rank's generator state, so each resumes its own dropout stream.
+        rng = [torch.get_rng_state()]
+        if info.distributed:
+            rng = [torch.empty_like(rng[0]) for _ in range(info.world_size)]
+            torch.distributed.all_gather_object(rng, torch.get_rng_state())
+        logger.info(
+            "epoch %d/%d lr %.3g train loss %.5f | val MPJPE %.2f mm (@%d ms %.2f mm) MAE %.4f "
+            "rad%s | %.0f s", epoch, cfg.train.epochs - 1, lr, stats["train/loss"],
+            1000 * stats["val/mpjpe_m"], round(1000 * cfg.model.n_future / prepared.fps),
+            1000 * stats["val/mpjpe_last_m"], stats["val/mae_rad"], " *best*" if is_best else "",
+            stats["time/epoch_s"],
+        )  # fmt: skip
+        if info.is_main:
+            metrics.log(epoch, stats)
+            state = {
+                "model": model_without_ddp.state_dict(),
+                "optimizer": optimizer.state_dict(),
+                "scheduler": scheduler.state_dict(),
+                "epoch": epoch,
+                "best_metric": best_metric,
+                "best_epoch": best_epoch,
+                "config": config_to_dict(cfg),
+                "git_hash": commit,
+                "rng": rng,
+                "fps": float(prepared.fps),
+                "val": stats,
+            }
+            save_checkpoint(state, run_dir / "last.pt")
+            if is_best:
+                save_checkpoint(state, run_dir / "best.pt")
+    if metrics is not None:
+        metrics.close()
+    barrier()
+    if info.is_main and not args.no_final_eval:
+        best = load_checkpoint(run_dir / "best.pt")
+        model_without_ddp.load_state_dict(best["model"])
+        final_evaluation(
+            cfg,
+            torch_predictor(model_without_ddp, device=device, batch_size=cfg.eval.batch_size),
+            "gcn",
+            run_dir / "eval.json",
+            {"checkpoint": str(run_dir / "best.pt"), "epoch": int(best["epoch"]),
+             "val_mpjpe_m": float(best["best_metric"]), "config": config_to_dict(cfg)},
+        )  # fmt: skip
+    barrier()
+    return 0
+
+
+def eval_only(cfg: PredictorTrainingConfig, args: argparse.Namespace, device: torch.device) -> int:
+    """``--eval-only``: evaluate a checkpoint (architecture from it) or an ONNX file."""
+    if (args.checkpoint is None) == (args.onnx is None):
+        raise GaitnetError("--eval-only needs exactly one of --checkpoint or --onnx")
+    extra = {"config": config_to_dict(cfg)}
+    if args.checkpoint is not None:
+        ckpt = load_checkpoint(args.checkpoint)
+        cfg = _with_checkpoint_architecture(cfg, ckpt, args.checkpoint)
+        model = DCTGCN(cfg.model).to(device)
+        model.load_state_dict(ckpt["model"])
+        predictor = torch_predictor(model, device=device, batch_size=cfg.eval.batch_size)
+        source = Path(args.checkpoint)
+        extra.update(checkpoint=str(source), epoch=int(ckpt["epoch"]), config=config_to_dict(cfg))
+    else:
+        from gaitnet.motion.onnx_runtime import OnnxPredictor
+
+        source = Path(args.onnx)
+        predictor = onnx_predictor(OnnxPredictor(source, threads=max(1, torch.get_num_threads())))
+        extra.update(onnx=str(source))
+    out = Path(args.out) if args.out else source.with_name(f"eval_{source.stem}.json")
+    final_evaluation(cfg, predictor, "gcn", out, extra)
+    return 0
+
+
+def get_args_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--config", required=True, help="YAML config (configs/predictor/)")
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue from <run_dir>/last.pt (or --checkpoint); the whole state is restored",
+    )
+    parser.add_argument("--eval-only", action="store_true", help="only evaluate, no training")
+    parser.add_argument(
+        "--checkpoint", help="checkpoint to evaluate (--eval-only) or to resume from (--resume)"
+    )
+    parser.add_argument("--onnx", help="with --eval-only: exported ONNX model to evaluate")
+    parser.add_argument("--out", help="with --eval-only: JSON to write (default: next to it)")
+    parser.add_argument(
+        "--no-final-eval", action="store_true", help="skip eval.json after training"
+    )
+    parser.add_argument("overrides", nargs="*", help="config overrides key=value")
+    return parser
+
+
+if __name__ == "__main__":
+    arguments = get_args_parser().parse_args()
+    try:
+        code = main(arguments)
+    except (GaitnetError, FileNotFoundError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        code = 1
+    finally:
+        cleanup_distributed()
+    sys.exit(code)
