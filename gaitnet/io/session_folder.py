@@ -19,6 +19,7 @@ import logging
 import os
 import shutil
 from collections.abc import Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -149,7 +150,13 @@ class SessionWriter:
             (writer.staging / "groundtruth").mkdir()   # extra content, optional
     """
 
-    def __init__(self, root: str | Path, calibration: SessionCalibration, overwrite: bool = False):
+    def __init__(
+        self,
+        root: str | Path,
+        calibration: SessionCalibration,
+        overwrite: bool = False,
+        encode_threads: int = 1,
+    ):
         self.root = Path(root)
         self.calibration = calibration
         if self.root.exists() and not self.root.is_dir():
@@ -168,6 +175,8 @@ class SessionWriter:
         (self.staging / "depth").mkdir()
         self._times: list[int] = []
         self._imu: ImuSamples | None = None
+        self._pool = ThreadPoolExecutor(encode_threads) if encode_threads > 0 else None
+        self._pending: list[Future] = []
 
     def add_frame(self, t_ns: int, rgb: np.ndarray, depth_m: np.ndarray) -> None:
         c, d = self.calibration.color, self.calibration.depth
@@ -180,10 +189,31 @@ class SessionWriter:
         if self._times and t_ns <= self._times[-1]:
             raise ValueError(f"frame timestamps must increase ({t_ns} after {self._times[-1]})")
         name = f"{int(t_ns)}.png"
-        (self.staging / "color" / name).write_bytes(encode_png(rgb))
+        self.write_png(self.staging / "color" / name, rgb.copy())
         units = depth_to_units(depth_m, self.calibration.depth_scale_m)
-        (self.staging / "depth" / name).write_bytes(encode_png(units))
+        self.write_png(self.staging / "depth" / name, units)
         self._times.append(int(t_ns))
+
+    def write_png(self, path: Path, image: np.ndarray) -> None:
+        """Encode and write ``image`` (not modified afterwards by the caller) in the background.
+
+        PNG encoding releases the GIL, so with ``encode_threads`` ≥ 1 it overlaps with the
+        caller's work; errors surface at the next call or at :meth:`close`.
+        """
+        self._raise_failures(block=False)
+        if self._pool is None:
+            path.write_bytes(encode_png(image))
+            return
+        self._pending.append(self._pool.submit(lambda: path.write_bytes(encode_png(image))))
+
+    def _raise_failures(self, block: bool) -> None:
+        still = []
+        for future in self._pending:
+            if block or future.done():
+                future.result()
+            else:
+                still.append(future)
+        self._pending = still
 
     def set_imu(self, imu: ImuSamples) -> None:
         validate_imu(imu, "IMU stream being written")
@@ -194,6 +224,9 @@ class SessionWriter:
             raise ValueError("set_imu() was not called")
         if not self._times:
             raise ValueError("no frames were added")
+        self._raise_failures(block=True)
+        if self._pool is not None:
+            self._pool.shutdown()
         atomic_write_text(self.staging / "session.yaml", session_yaml_text(self.calibration))
         atomic_write_text(self.staging / "imu.csv", imu_csv_text(self._imu))
         if self.root.exists():
@@ -202,6 +235,8 @@ class SessionWriter:
         return self.root
 
     def abort(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
         shutil.rmtree(self.staging, ignore_errors=True)
 
     def __enter__(self) -> SessionWriter:

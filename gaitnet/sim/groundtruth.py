@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import io
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -52,8 +53,11 @@ def _save_npz(path: Path, **arrays: np.ndarray) -> None:
 class GroundTruthWriter:
     """Collects per-frame label maps and writes the tables at the end."""
 
-    def __init__(self, root: Path, write_labels: bool = True) -> None:
+    def __init__(
+        self, root: Path, write_labels: bool = True, write_png: Callable | None = None
+    ) -> None:
         self.root = Path(root)
+        self._write_png = write_png or (lambda path, image: path.write_bytes(encode_png(image)))
         self.write_labels = write_labels
         self.root.mkdir(parents=True, exist_ok=True)
         if write_labels:
@@ -63,8 +67,8 @@ class GroundTruthWriter:
     def add_frame(self, t_ns: int, label: np.ndarray, instance: np.ndarray) -> None:
         if not self.write_labels:
             return
-        (self.root / "labels" / f"{t_ns}.png").write_bytes(encode_png(label))
-        (self.root / "instances" / f"{t_ns}.png").write_bytes(encode_png(instance))
+        self._write_png(self.root / "labels" / f"{t_ns}.png", label)
+        self._write_png(self.root / "instances" / f"{t_ns}.png", instance)
 
     def write_all(
         self,

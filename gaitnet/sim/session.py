@@ -253,7 +253,7 @@ def simulate_session(
 
     out_dir = Path(out_dir)
     writer = SessionWriter(out_dir, calibration, overwrite=overwrite)
-    gt = GroundTruthWriter(writer.staging / "groundtruth", write_labels=cfg.output.labels)
+    gt = GroundTruthWriter(writer.staging / "groundtruth", cfg.output.labels, writer.write_png)
     sensor_rng = rngs["sensor"]
     drift = np.cumsum(
         sensor_rng.normal(0.0, cfg.scene.exposure_drift / np.sqrt(len(times)), len(times))
