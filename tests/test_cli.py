@@ -92,3 +92,12 @@ def test_check_garbage_bag_one_line(tmp_path: Path) -> None:
     path.write_bytes(b"#ROSBAG V2.0\n" + b"\x00" * 50)
     line = _one_line_error(run("check", str(path)))
     assert str(path) in line
+
+
+def test_simulate_unknown_config_key_one_line(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("scene:\n  floor_famly: wood\n")
+    line = _one_line_error(run("simulate", "--config", str(bad), "--out", str(tmp_path / "o")))
+    assert str(bad) in line and "unknown key 'scene.floor_famly'" in line
+    line = _one_line_error(run("simulate", "--out", str(tmp_path / "o"), "camera.width=wide"))
+    assert "key 'camera.width' expects int, got 'wide'" in line
