@@ -42,32 +42,13 @@ Frames
     ``depth`` intrinsics are the colour intrinsics and ``depth_aligned_to_color`` is True; the
     bag's own depth intrinsics are in ``extra["bag_depth_intrinsics"]``.
 
-Extrinsics: direction convention of the SDK's ``tf`` topics (assumption, documented here)
-    Each stream's ``tf/<group>`` holds the extrinsic between that stream and its group's
-    reference ("pin") stream — the depth stream on D400 devices. We take it as the transform
-    **from the reference stream to this stream**: ``p_stream = R p_ref + t``, i.e.
-    ``T_{stream from ref}`` (:data:`TF_REF_TO_STREAM`). Evidence in librealsense:
-    ``ros_writer::write_extrinsics`` stores ``device::get_extrinsics(stream)``, which returns
-    ``try_fetch_extrinsics(*pin_stream, stream)`` — extrinsics *from* the pin stream *to* the
-    stream, and ``rs2_extrinsics`` from→to maps points as ``p_to = R p_from + t``
-    (``rs2_transform_point_to_point``; the column-major rotation is converted to the quaternion
-    of that same R by ``rot2quat``). Playback (``playback_device::calc_extrinsic``) registers
-    stream1→stream2 as ``E2 · E1⁻¹``, which is only right with this reading — although a
-    comment there says the opposite ("from the stream at hand to some reference point").
-    Because of that contradiction the convention is a parameter: pass
-    ``tf_convention=TF_STREAM_TO_REF`` to read ``tf`` as ``T_{ref from stream}``. Then
-    ``T_CfromI = E_color · E_imu⁻¹`` (default) or ``E_color⁻¹ · E_imu`` (the other reading); see
-    :func:`relative_extrinsic`. The IMU extrinsic is the gyro stream's tf (the accel's if the
-    gyro has none). A depth stream without a tf is taken as the reference (identity).
+Extrinsics and IMU noise
+    How the SDK's ``tf`` extrinsics are read (``tf_convention``: :data:`TF_REF_TO_STREAM` or
+    :data:`TF_STREAM_TO_REF`) and how ``imu_intrinsic`` variances become
+    :class:`~gaitnet.io.types.ImuNoise` is documented in :mod:`gaitnet.io.realsense_extrinsics`.
 
-IMU noise
-    ``realsense_msgs/ImuIntrinsic`` carries ``noise_variances`` and ``bias_variances`` per
-    axis. We read them as discrete per-sample variances at the stream's rate ``f`` (the
-    StreamInfo fps, else the median record interval): noise density ``sqrt(var / f)`` and bias
-    random walk ``sqrt(var_b · f)`` (Kalibr's discrete↔continuous relations), averaging the
-    three axes' variances. ``imu_noise`` is None unless both the accelerometer and the gyro
-    report positive, finite noise *and* bias variances (the SDK writes zeros when the device
-    has no such calibration, which is the usual case).
+Module layout: low-level bag reads are in :mod:`gaitnet.io.bag_index`, depth re-projection in
+:mod:`gaitnet.io.depth_align`; their public names are re-exported here.
 
 Errors (a missing colour, depth or IMU topic, an empty bag, a file that is not a bag or is
 truncated, an unsupported image encoding, damaged records) raise :class:`SessionError` with a
@@ -76,14 +57,10 @@ one-line message that names the bag file.
 
 from __future__ import annotations
 
-import bz2
 import logging
 import math
-import os
 import re
 import struct
-import threading
-from collections import OrderedDict
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -92,7 +69,25 @@ from typing import Any
 import numpy as np
 
 from gaitnet.errors import SessionError
+from gaitnet.io.bag_index import (
+    _DamagedError,
+    _Entry,
+    _parse_imu,
+    _Records,
+    _stamp_ns,
+    _Types,
+)
+from gaitnet.io.depth_align import align_depth_to_color
 from gaitnet.io.imu_merge import merge_imu_streams
+from gaitnet.io.realsense_extrinsics import (
+    TF_REF_TO_STREAM,
+    TF_STREAM_TO_REF,
+    imu_noise_from_intrinsics,
+    invert_rigid,
+    quaternion_to_matrix,
+    relative_extrinsic,
+    transform_to_matrix,
+)
 from gaitnet.io.types import (
     CameraIntrinsics,
     Frame,
@@ -101,15 +96,21 @@ from gaitnet.io.types import (
     SessionCalibration,
 )
 
+__all__ = [
+    "DEFAULT_DEPTH_UNITS_M",
+    "TF_REF_TO_STREAM",
+    "TF_STREAM_TO_REF",
+    "RealSenseBag",
+    "align_depth_to_color",
+    "invert_rigid",
+    "quaternion_to_matrix",
+    "relative_extrinsic",
+    "transform_to_matrix",
+]
+
 log = logging.getLogger(__name__)
 
-TF_REF_TO_STREAM = "ref_to_stream"
-"""``tf`` of a stream maps reference-stream points into that stream (librealsense's writer)."""
-TF_STREAM_TO_REF = "stream_to_ref"
-"""``tf`` of a stream maps that stream's points into the reference stream."""
-
 DEFAULT_DEPTH_UNITS_M = 0.001
-_SPLAT_MARGIN_PX = 0.25  # see align_depth_to_color
 
 _DATA_TOPIC = re.compile(
     r"^/device_(\d+)/sensor_(\d+)/(Depth|Color|Accel|Gyro)_(\d+)/(image|imu)/data$"
@@ -129,418 +130,6 @@ _COLOR_ENCODINGS = {  # encoding -> (channels, indices of R, G, B)
     "bgra8": (4, (2, 1, 0)),
 }
 _DEPTH_ENCODINGS = {"mono16": "u2", "16uc1": "u2", "32fc1": "f4"}
-
-_U32 = struct.Struct("<I")
-_OP_MSGDATA = 2
-_OP_CHUNK = 5
-_OP_CONNECTION = 7
-
-
-# --------------------------------------------------------------------------------------------
-# Geometry helpers (public: usable and tested on their own)
-# --------------------------------------------------------------------------------------------
-
-
-def quaternion_to_matrix(x: float, y: float, z: float, w: float) -> np.ndarray:
-    """3×3 rotation of the unit quaternion ``(x, y, z, w)`` (Hamilton, as ROS)."""
-    q = np.array([x, y, z, w], dtype=np.float64)
-    n = float(np.linalg.norm(q))
-    if not math.isfinite(n) or n < 1e-9:
-        raise ValueError(f"not a rotation quaternion: {q.tolist()}")
-    x, y, z, w = q / n
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-def transform_to_matrix(msg: Any) -> np.ndarray:
-    """4×4 matrix of a ``geometry_msgs/Transform`` (``[R t; 0 1]``, direction as stored)."""
-    T = np.eye(4)
-    r, t = msg.rotation, msg.translation
-    T[:3, :3] = quaternion_to_matrix(r.x, r.y, r.z, r.w)
-    T[:3, 3] = [t.x, t.y, t.z]
-    return T
-
-
-def invert_rigid(T: np.ndarray) -> np.ndarray:
-    """Inverse of a 4×4 rigid transform."""
-    R, t = T[:3, :3], T[:3, 3]
-    out = np.eye(4)
-    out[:3, :3] = R.T
-    out[:3, 3] = -R.T @ t
-    return out
-
-
-def relative_extrinsic(
-    E_target: np.ndarray, E_source: np.ndarray, convention: str = TF_REF_TO_STREAM
-) -> np.ndarray:
-    """``T_{target from source}`` from two streams' tf extrinsics of the same reference group.
-
-    With :data:`TF_REF_TO_STREAM` each ``E`` is ``T_{stream from ref}``, so the result is
-    ``E_target · E_source⁻¹``; with :data:`TF_STREAM_TO_REF` each ``E`` is ``T_{ref from
-    stream}`` and the result is ``E_target⁻¹ · E_source``.
-    """
-    if convention == TF_REF_TO_STREAM:
-        return E_target @ invert_rigid(E_source)
-    if convention == TF_STREAM_TO_REF:
-        return invert_rigid(E_target) @ E_source
-    raise ValueError(f"unknown tf convention {convention!r}")
-
-
-def align_depth_to_color(
-    depth_m: np.ndarray,
-    depth: CameraIntrinsics,
-    color: CameraIntrinsics,
-    T_CfromD: np.ndarray,
-) -> np.ndarray:
-    """Re-project a depth image into the colour camera (pinhole models, distortion ignored).
-
-    Every valid depth pixel (``> 0`` and finite) is treated as a small fronto-parallel square
-    at its depth: its four corners are back-projected, moved with ``T_CfromD`` (``p_C = R p_D
-    + t``) and projected into colour; every colour pixel whose centre falls inside the
-    projected square's bounding box, grown by ``_SPLAT_MARGIN_PX`` on each side, receives the
-    colour-frame depth of the pixel's centre point. Where several depth pixels land on one
-    colour pixel the nearest wins (z-buffer). Splatting the footprint rather than a single
-    point leaves no holes when colour has the finer resolution; the margin closes the thin
-    cracks between neighbouring footprints of a slanted surface (their depths differ, so
-    parallax separates them slightly) at the cost of growing foreground edges by at most one
-    colour pixel.
-
-    Returns float32 metres of shape ``(color.height, color.width)``, 0 where nothing landed.
-    """
-    z = np.asarray(depth_m, dtype=np.float64)
-    if z.shape != (depth.height, depth.width):
-        raise ValueError(f"depth image is {z.shape}, intrinsics say {(depth.height, depth.width)}")
-    W, H = color.width, color.height
-    out = np.full(H * W, np.inf)
-    valid = np.isfinite(z) & (z > 0)
-    v, u = np.nonzero(valid)
-    if u.size:
-        zs = z[v, u]
-        R = np.asarray(T_CfromD, dtype=np.float64)[:3, :3]
-        t = np.asarray(T_CfromD, dtype=np.float64)[:3, 3]
-
-        def to_color(du: float, dv: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            x = (u + du - depth.cx) / depth.fx * zs
-            y = (v + dv - depth.cy) / depth.fy * zs
-            X = R[0, 0] * x + R[0, 1] * y + R[0, 2] * zs + t[0]
-            Y = R[1, 0] * x + R[1, 1] * y + R[1, 2] * zs + t[1]
-            Z = R[2, 0] * x + R[2, 1] * y + R[2, 2] * zs + t[2]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                return color.fx * X / Z + color.cx, color.fy * Y / Z + color.cy, Z
-
-        _, _, zc = to_color(0.0, 0.0)
-        corners = [to_color(du, dv) for du in (-0.5, 0.5) for dv in (-0.5, 0.5)]
-        ok = zc > 0
-        for _, _, zk in corners:
-            ok &= zk > 0
-        us = np.stack([c[0] for c in corners])
-        vs = np.stack([c[1] for c in corners])
-        m = _SPLAT_MARGIN_PX
-        with np.errstate(invalid="ignore"):
-            x0 = np.ceil(us.min(axis=0) - m)
-            x1 = np.floor(us.max(axis=0) + m)
-            y0 = np.ceil(vs.min(axis=0) - m)
-            y1 = np.floor(vs.max(axis=0) + m)
-        ok &= np.isfinite(x0) & np.isfinite(x1) & np.isfinite(y0) & np.isfinite(y1)
-        ok &= (x1 >= 0) & (x0 <= W - 1) & (y1 >= 0) & (y0 <= H - 1)
-        x0 = np.clip(x0[ok], 0, W - 1).astype(np.int64)
-        x1 = np.clip(x1[ok], 0, W - 1).astype(np.int64)
-        y0 = np.clip(y0[ok], 0, H - 1).astype(np.int64)
-        y1 = np.clip(y1[ok], 0, H - 1).astype(np.int64)
-        zc = zc[ok]
-        span_x, span_y = x1 - x0, y1 - y0
-        keep = (span_x >= 0) & (span_y >= 0)
-        if keep.any():
-            # A footprint spans a few pixels at most (resolution ratio); cap it so that a
-            # degenerate projection (a point grazing the image plane) cannot explode.
-            max_x = min(int(span_x[keep].max()), 16)
-            max_y = min(int(span_y[keep].max()), 16)
-            for dy in range(max_y + 1):
-                for dx in range(max_x + 1):
-                    m = keep & (span_x >= dx) & (span_y >= dy)
-                    if m.any():
-                        idx = (y0[m] + dy) * W + (x0[m] + dx)
-                        np.minimum.at(out, idx, zc[m])
-    out[~np.isfinite(out)] = 0.0
-    return out.reshape(H, W).astype(np.float32)
-
-
-# --------------------------------------------------------------------------------------------
-# Low-level bag access
-# --------------------------------------------------------------------------------------------
-
-
-class _DamagedError(Exception):
-    pass
-
-
-def _parse_header(buf: bytes) -> dict[bytes, bytes]:
-    fields: dict[bytes, bytes] = {}
-    pos, n = 0, len(buf)
-    while pos < n:
-        if pos + 4 > n:
-            raise _DamagedError("record header field size is cut off")
-        (size,) = _U32.unpack_from(buf, pos)
-        pos += 4
-        if pos + size > n:
-            raise _DamagedError("record header field runs past the header")
-        name, sep, value = buf[pos : pos + size].partition(b"=")
-        if not sep:
-            raise _DamagedError("record header field without '='")
-        fields[name] = value
-        pos += size
-    return fields
-
-
-@dataclass(frozen=True)
-class _ChunkLoc:
-    datapos: int
-    datasize: int
-    compression: str
-
-
-@dataclass(frozen=True, slots=True)
-class _Entry:
-    """Where one message lies: record time, chunk, offset in the chunk, connection id."""
-
-    time: int
-    chunk_pos: int
-    offset: int
-    conn: int
-
-
-class _Records:
-    """Positioned reads of single messages (``os.pread``: safe across threads and forks)."""
-
-    def __init__(self, path: Path, src: str) -> None:
-        self.path = path
-        self.src = src
-        self.chunks: dict[int, _ChunkLoc] = {}
-        self._fh = None
-        self._pid = -1
-        self._lock = threading.Lock()
-        self._cache: OrderedDict[int, bytes] = OrderedDict()
-
-    def __getstate__(self) -> dict:
-        return {"path": self.path, "src": self.src, "chunks": self.chunks}
-
-    def __setstate__(self, state: dict) -> None:
-        self.__init__(state["path"], state["src"])
-        self.chunks = state["chunks"]
-
-    def close(self) -> None:
-        with self._lock:
-            if self._fh is not None:
-                self._fh.close()
-            self._fh = None
-            self._cache.clear()
-
-    def _fd(self) -> int:
-        if self._fh is None or self._pid != os.getpid():
-            try:
-                self._fh = open(self.path, "rb")  # noqa: SIM115 - kept open, closed by close()
-            except OSError as exc:
-                raise SessionError(f"{self.src}: cannot open the bag ({exc.strerror})") from exc
-            self._pid = os.getpid()
-        return self._fh.fileno()
-
-    def read_file(self, pos: int, n: int) -> bytes:
-        data = os.pread(self._fd(), n, pos)
-        if len(data) != n:
-            raise _DamagedError(f"file ends at byte {pos + len(data)}, expected {n} bytes at {pos}")
-        return data
-
-    def scan_chunk(self, pos: int) -> _ChunkLoc:
-        """Read the CHUNK record header at file position ``pos``."""
-        (hl,) = _U32.unpack(self.read_file(pos, 4))
-        header = _parse_header(self.read_file(pos + 4, hl))
-        if header.get(b"op") != bytes([_OP_CHUNK]):
-            raise _DamagedError(f"no chunk record at byte {pos}")
-        (size,) = _U32.unpack(self.read_file(pos + 4 + hl, 4))
-        compression = header.get(b"compression", b"none").decode(errors="replace")
-        return _ChunkLoc(pos + 8 + hl, size, compression)
-
-    def _chunk_data(self, chunk_pos: int) -> bytes:
-        with self._lock:
-            if chunk_pos in self._cache:
-                self._cache.move_to_end(chunk_pos)
-                return self._cache[chunk_pos]
-        loc = self.chunks[chunk_pos]
-        raw = self.read_file(loc.datapos, loc.datasize)
-        try:
-            if loc.compression == "lz4":
-                from lz4.frame import decompress as lz4_decompress
-
-                data = lz4_decompress(raw)
-            elif loc.compression == "bz2":
-                data = bz2.decompress(raw)
-            else:
-                raise SessionError(f"{self.src}: unsupported chunk compression {loc.compression!r}")
-        except SessionError:
-            raise
-        except Exception as exc:
-            raise _DamagedError(f"chunk at byte {chunk_pos} does not decompress ({exc})") from exc
-        with self._lock:
-            self._cache[chunk_pos] = data
-            while len(self._cache) > 4:
-                self._cache.popitem(last=False)
-        return data
-
-    def message(self, entry: _Entry, limit: int | None = None) -> bytes:
-        """Serialized message at ``entry`` (its first ``limit`` bytes when given)."""
-        try:
-            return self._message(entry, limit)
-        except _DamagedError as exc:
-            raise SessionError(f"{self.src}: bag data looks damaged ({exc})") from None
-        except struct.error as exc:
-            raise SessionError(f"{self.src}: bag data looks damaged ({exc})") from None
-
-    def _message(self, entry: _Entry, limit: int | None) -> bytes:
-        loc = self.chunks.get(entry.chunk_pos)
-        if loc is None:
-            raise _DamagedError(f"index points to unknown chunk at byte {entry.chunk_pos}")
-        if loc.compression == "none":
-            # One read of a small window usually holds the record header and, for small
-            # messages (IMU), the whole payload; anything beyond it is read separately.
-            w0 = entry.offset
-            window = self.read_file(loc.datapos + w0, max(0, min(4096, loc.datasize - w0)))
-
-            def read(p: int, n: int) -> bytes:
-                if p < 0 or p + n > loc.datasize:
-                    raise _DamagedError(f"record runs past its chunk at byte {entry.chunk_pos}")
-                if w0 <= p and p + n <= w0 + len(window):
-                    return window[p - w0 : p - w0 + n]
-                return self.read_file(loc.datapos + p, n)
-
-        else:
-            buf = self._chunk_data(entry.chunk_pos)
-
-            def read(p: int, n: int) -> bytes:
-                if p < 0 or p + n > len(buf):
-                    raise _DamagedError(f"record runs past its chunk at byte {entry.chunk_pos}")
-                return buf[p : p + n]
-
-        pos = entry.offset
-        while True:
-            (hl,) = _U32.unpack(read(pos, 4))
-            header = _parse_header(read(pos + 4, hl))
-            (dl,) = _U32.unpack(read(pos + 4 + hl, 4))
-            data_pos = pos + 8 + hl
-            op = header.get(b"op")
-            if op == bytes([_OP_CONNECTION]):
-                pos = data_pos + dl
-                continue
-            if op != bytes([_OP_MSGDATA]):
-                raise _DamagedError(f"no message record at offset {pos} of chunk {entry.chunk_pos}")
-            return read(data_pos, dl if limit is None else min(dl, limit))
-
-
-class _Types:
-    """Typestores built from the bag's own message definitions, one per connection."""
-
-    def __init__(self, defs: dict[int, tuple[str, str]], src: str) -> None:
-        self.defs = defs  # connection id -> (normalized msgtype, msgdef text)
-        self.src = src
-        self._base = None
-        self._stores: dict[tuple[str, str], Any] = {}
-
-    def __getstate__(self) -> dict:
-        return {"defs": self.defs, "src": self.src}
-
-    def __setstate__(self, state: dict) -> None:
-        self.__init__(state["defs"], state["src"])
-
-    def store(self, conn: int) -> Any:
-        from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typestore
-
-        key = self.defs[conn]
-        if key in self._stores:
-            return self._stores[key]
-        msgtype, text = key
-        if self._base is None:
-            self._base = get_typestore(Stores.ROS1_NOETIC)
-        store = self._base
-        if text.strip():
-            try:
-                types = get_types_from_msg(text, msgtype)
-            except Exception as exc:
-                if msgtype not in self._base.types:
-                    raise SessionError(
-                        f"{self.src}: cannot parse the message definition of {msgtype} ({exc})"
-                    ) from None
-                types = None
-            if types is not None:
-                try:
-                    self._base.register(types)
-                except TypesysError:
-                    # The bag defines a type differently from ROS1 Noetic (e.g. a vendor
-                    # variant): decode this connection with its own store.
-                    store = get_typestore(Stores.EMPTY)
-                    store.register(types)
-                    log.debug("%s: %s has a non-standard definition", self.src, msgtype)
-        elif msgtype not in self._base.types:
-            raise SessionError(f"{self.src}: no message definition for type {msgtype}")
-        self._stores[key] = store
-        return store
-
-    def decode(self, conn: int, raw: bytes, topic: str) -> Any:
-        msgtype = self.defs[conn][0]
-        try:
-            return self.store(conn).deserialize_ros1(raw, msgtype)
-        except SessionError:
-            raise
-        except Exception as exc:
-            raise SessionError(
-                f"{self.src}: cannot decode a {msgtype} message on {topic} ({exc})"
-            ) from None
-
-    def is_standard(self, conn: int, msgtype: str) -> bool:
-        """Whether ``conn`` carries ``msgtype`` exactly as ROS1 Noetic defines it."""
-        if self.defs[conn][0] != msgtype:
-            return False
-        store = self.store(conn)
-        return store is self._base and msgtype in store.fielddefs
-
-    def header_first(self, conn: int) -> bool:
-        """Whether messages of ``conn`` start with a ROS1 ``Header`` (seq, stamp, …)."""
-        store = self.store(conn)
-        msgtype = self.defs[conn][0]
-        fields = store.fielddefs.get(msgtype, ([], []))[1]
-        if not fields or fields[0][1][-1] != "std_msgs/msg/Header":
-            return False
-        hdr = store.fielddefs.get("std_msgs/msg/Header", ([], []))[1]
-        return [f[0] for f in hdr[:2]] == ["seq", "stamp"]
-
-
-_IMU_TAIL_DOUBLES = 4 + 9 + 3 + 9 + 3 + 9  # orientation, cov, gyro, cov, accel, cov
-
-
-def _parse_imu(raw: bytes, gyro: bool) -> tuple[int, tuple[float, float, float]] | None:
-    """Stamp and gyro (or accel) vector of a standard ROS1 ``sensor_msgs/Imu`` payload.
-
-    A direct ``struct`` read, ~10× faster than generic deserialization (IMU streams have
-    hundreds of thousands of messages); None if the size does not fit the standard layout.
-    """
-    if len(raw) < 16:
-        return None
-    _, sec, nsec, frame_id_len = struct.unpack_from("<IIII", raw, 0)
-    base = 16 + frame_id_len
-    if len(raw) != base + 8 * _IMU_TAIL_DOUBLES:
-        return None
-    vec = struct.unpack_from("<3d", raw, base + 8 * (13 if gyro else 25))
-    return sec * 1_000_000_000 + nsec, vec
-
-
-def _stamp_ns(stamp: Any) -> int:
-    nsec = getattr(stamp, "nanosec", None)
-    if nsec is None:
-        nsec = stamp.nsec
-    return int(stamp.sec) * 1_000_000_000 + int(nsec)
 
 
 @dataclass(frozen=True)
@@ -587,7 +176,8 @@ class RealSenseBag:
     Args:
         path: the ``.bag`` file.
         imu_gap_warn_s: IMU gaps longer than this are logged as warnings.
-        tf_convention: how to read the SDK's ``tf`` extrinsics (module docstring);
+        tf_convention: how to read the SDK's ``tf`` extrinsics
+            (:mod:`gaitnet.io.realsense_extrinsics`);
             :data:`TF_REF_TO_STREAM` (default) or :data:`TF_STREAM_TO_REF`.
         T_CfromI: 4×4 IMU→colour extrinsic to use instead of the bag's tf (required when the
             bag has no tf for the colour or IMU stream).
@@ -1048,25 +638,10 @@ class RealSenseBag:
     def _imu_noise(
         self, acc_intr: Any, gyr_intr: Any, fps_acc: float | None, fps_gyr: float | None
     ) -> ImuNoise | None:
-        def variances(msg: Any, name: str) -> float | None:
-            if msg is None:
-                return None
-            v = np.asarray(getattr(msg, name, []), dtype=np.float64).ravel()
-            if v.size == 0 or not np.isfinite(v).all() or (v <= 0).any():
-                return None
-            return float(v.mean())
-
-        a_n, a_b = variances(acc_intr, "noise_variances"), variances(acc_intr, "bias_variances")
-        g_n, g_b = variances(gyr_intr, "noise_variances"), variances(gyr_intr, "bias_variances")
-        if None in (a_n, a_b, g_n, g_b, fps_acc, fps_gyr):
+        noise = imu_noise_from_intrinsics(acc_intr, gyr_intr, fps_acc, fps_gyr)
+        if noise is None:
             log.info("%s: no IMU noise variances in imu_intrinsic, imu_noise = None", self._src)
-            return None
-        return ImuNoise(
-            gyro_noise_density=math.sqrt(g_n / fps_gyr),
-            accel_noise_density=math.sqrt(a_n / fps_acc),
-            gyro_bias_random_walk=math.sqrt(g_b * fps_gyr),
-            accel_bias_random_walk=math.sqrt(a_b * fps_acc),
-        )
+        return noise
 
     def _check_first_frame(self) -> None:
         rgb = self._decode_color(self._color_entries[0])
