@@ -113,14 +113,14 @@ def slip_and_imu(n_walks: int, seed: int) -> None:
 def surface_checks(cfg: SimConfig, seed: int, session: Path, every: int) -> None:
     """Labelled pixels back-projected with noise-free depth lie on the rendered surfaces."""
     from gaitnet.sim.floor import make_floor  # noqa: PLC0415
-    from gaitnet.sim.session import _appearance, _floor_extent, _lighting  # noqa: PLC0415
+    from gaitnet.sim.session import floor_extent, sample_appearance, sample_lighting  # noqa: PLC0415
 
     rngs = rng_streams(seed)
     subject = sample_subject(rngs["subject"], cfg.subject.height_range_m, cfg.subject.height_m)
     walk = generate_walk(subject, cfg.gait, rngs["gait"])
-    floor = make_floor("tiles", rngs["room"], _floor_extent(walk), cfg.scene.texel_m)
-    appearance = _appearance(subject, floor, rngs["room"], 0.0)
-    light = _lighting(rngs["lighting"], True)
+    floor = make_floor("tiles", rngs["room"], floor_extent(walk), cfg.scene.texel_m)
+    appearance = sample_appearance(subject, floor, rngs["room"], 0.0)
+    light = sample_lighting(rngs["lighting"], True)
     K = cfg.camera.intrinsics().K
     folder = SessionFolder(session)
     T_PfromC = cfg.mount.T_PfromC()

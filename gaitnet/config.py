@@ -70,6 +70,25 @@ def save_config(cfg: Any, path: str | Path) -> Path:
     return path
 
 
+def config_keys(cls: type, prefix: str = "") -> list[str]:
+    """Dotted names of every key of a config dataclass tree (for docs and their tests).
+
+    A section typed ``Section | None`` is a key itself and its fields are listed too.
+    """
+    keys: list[str] = []
+    hints = typing.get_type_hints(cls)
+    for f in dataclasses.fields(cls):
+        tp = hints[f.name]
+        inner = [a for a in typing.get_args(tp) if dataclasses.is_dataclass(a)]
+        if dataclasses.is_dataclass(tp) or inner:
+            if inner:
+                keys.append(f"{prefix}{f.name}")
+            keys += config_keys(inner[0] if inner else tp, f"{prefix}{f.name}.")
+        else:
+            keys.append(f"{prefix}{f.name}")
+    return keys
+
+
 def _read_yaml(path: Path) -> dict[str, Any]:
     if not path.is_file():
         raise ConfigError(f"{path}: config file not found")

@@ -15,7 +15,7 @@ import torch
 import yaml
 from scipy.spatial.transform import Rotation
 
-from gaitnet.config import load_config
+from gaitnet.config import config_keys, load_config
 from gaitnet.errors import GaitnetError
 from gaitnet.motion.amass import DatasetSplit, prepare_walking_subset
 from gaitnet.training.checkpoint import (
@@ -257,27 +257,9 @@ def test_torchrun_environment_and_rank_filter(monkeypatch) -> None:
     assert RankZeroFilter(1).filter(warn)
 
 
-def _leaf_keys(cls: type, prefix: str = "") -> list[str]:
-    import dataclasses
-    import typing
-
-    keys = []
-    hints = typing.get_type_hints(cls)
-    for f in dataclasses.fields(cls):
-        tp = hints[f.name]
-        inner = [a for a in typing.get_args(tp) if dataclasses.is_dataclass(a)]
-        if dataclasses.is_dataclass(tp) or inner:
-            if inner:  # an optional section (e.g. data.split) is a key itself
-                keys.append(f"{prefix}{f.name}")
-            keys += _leaf_keys(inner[0] if inner else tp, f"{prefix}{f.name}.")
-        else:
-            keys.append(f"{prefix}{f.name}")
-    return keys
-
-
 def test_every_predictor_config_key_is_documented() -> None:
     text = (ROOT / "docs" / "predictor.md").read_text()
-    missing = [k for k in _leaf_keys(PredictorTrainingConfig) if f"`{k}`" not in text]
+    missing = [k for k in config_keys(PredictorTrainingConfig) if f"`{k}`" not in text]
     assert not missing, f"undocumented keys in docs/predictor.md: {missing}"
     for cfg in sorted((ROOT / "configs" / "predictor").glob("*.yaml")):
         assert cfg.read_text().startswith("#"), f"{cfg.name} needs a header comment"

@@ -42,6 +42,7 @@ import torch
 from torch import nn
 
 from gaitnet.motion.dct import dct_matrix_torch, idct_matrix_torch
+from gaitnet.motion.skeleton import JOINT_NAMES
 
 __all__ = [
     "DCTGCN",
@@ -56,15 +57,7 @@ __all__ = [
 
 #: SMPL joint whose rotation nodes ``3j .. 3j+2`` hold (joint 0: the root orientation).
 NODE_JOINTS: tuple[int, ...] = (0, 1, 2, 4, 5, 7, 8)
-NODE_JOINT_NAMES: tuple[str, ...] = (
-    "pelvis",
-    "L_hip",
-    "R_hip",
-    "L_knee",
-    "R_knee",
-    "L_ankle",
-    "R_ankle",
-)
+NODE_JOINT_NAMES: tuple[str, ...] = JOINT_NAMES[: len(NODE_JOINTS)]
 
 
 @dataclass(frozen=True)

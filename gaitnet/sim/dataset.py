@@ -39,7 +39,7 @@ from gaitnet.sim.floor import FLOOR_FAMILIES, make_clutter, make_floor
 from gaitnet.sim.gait import generate_walk
 from gaitnet.sim.render import render_frame
 from gaitnet.sim.sensor_model import apply_sensor, auto_exposure
-from gaitnet.sim.session import _appearance, _floor_extent, _lighting, rng_streams
+from gaitnet.sim.session import floor_extent, rng_streams, sample_appearance, sample_lighting
 from gaitnet.sim.subject import sample_subject
 
 Progress = Callable[[Iterable, int], Iterable]
@@ -95,13 +95,13 @@ def simulate_dataset(
             walk = generate_walk(subject, cfg.gait, rngs["gait"])
             room = rngs["room"]
             family = FLOOR_FAMILIES[int(room.integers(len(FLOOR_FAMILIES)))]
-            extent = _floor_extent(walk)
+            extent = floor_extent(walk)
             floor = make_floor(
                 family, room, extent, max(cfg.scene.texel_m, 0.004), (), room_height_m=2.8
             )
             clutter = make_clutter(room, extent, cfg.scene.clutter_count, path_y_m=0.0)
-            appearance = _appearance(subject, floor, room, cfg.scene.shoe_like_floor_prob)
-            light = _lighting(rngs["lighting"], True)
+            appearance = sample_appearance(subject, floor, room, cfg.scene.shoe_like_floor_prob)
+            light = sample_lighting(rngs["lighting"], True)
             pitch = float(rngs["lighting"].uniform(*pitch_range_deg))
             mount = replace(cfg.mount, pitch_deg=pitch)
             walking = (cfg.gait.stand_start_s + 0.5, walk.duration_s - cfg.gait.stand_end_s - 0.5)

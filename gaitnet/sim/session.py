@@ -97,14 +97,14 @@ def _board_in_front(
     return AprilTagBoard(name, "tag36h11", 7, 5, s, g, first_id, make_T(R, origin))
 
 
-def _floor_extent(walk: Walk) -> tuple[tuple[float, float], tuple[float, float]]:
+def floor_extent(walk: Walk) -> tuple[tuple[float, float], tuple[float, float]]:
     t = np.linspace(0.0, walk.duration_s, 200)
     soles = walk.sole_centres(t).reshape(-1, 3)
     (x0, y0), (x1, y1) = soles[:, :2].min(0), soles[:, :2].max(0)
     return (float(x0 - 2.0), float(x1 + 3.5)), (float(y0 - 2.0), float(y1 + 2.0))
 
 
-def _lighting(rng: np.random.Generator, vary: bool) -> Lighting:
+def sample_lighting(rng: np.random.Generator, vary: bool) -> Lighting:
     if not vary:
         return Lighting()
     azimuth = rng.uniform(0, 2 * np.pi)
@@ -119,7 +119,7 @@ def _lighting(rng: np.random.Generator, vary: bool) -> Lighting:
     )
 
 
-def _appearance(
+def sample_appearance(
     subject: Subject, floor: FloorTexture, rng: np.random.Generator, p: float
 ) -> Appearance:
     appearance = subject.appearance()
@@ -209,7 +209,7 @@ def simulate_session(
             _board_in_front("start", 0, walk, 0.0, cfg),
             _board_in_front("end", 35, walk, walk.duration_s, cfg),
         )
-    extent = _floor_extent(walk)
+    extent = floor_extent(walk)
     floor = make_floor(
         family,
         room_rng,
@@ -220,10 +220,10 @@ def simulate_session(
     )
     path_y = float(np.mean(walk.sole_centres(np.array([0.0]))[0, :, 1]))
     clutter = make_clutter(room_rng, extent, cfg.scene.clutter_count, path_y_m=path_y)
-    appearance = _appearance(subject, floor, room_rng, cfg.scene.shoe_like_floor_prob)
+    appearance = sample_appearance(subject, floor, room_rng, cfg.scene.shoe_like_floor_prob)
 
     light_rng = rngs["lighting"]
-    light = _lighting(light_rng, cfg.scene.lighting_variation)
+    light = sample_lighting(light_rng, cfg.scene.lighting_variation)
     exposure_gain = float(light_rng.uniform(*cfg.scene.exposure_range))
 
     cam = cfg.camera
