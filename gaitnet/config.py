@@ -14,12 +14,14 @@ writes the resolved config (atomically) next to a run's outputs.
 from __future__ import annotations
 
 import dataclasses
+import math
 import types
 import typing
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
 
+import numpy as np
 import yaml
 
 from gaitnet.errors import ConfigError
@@ -53,6 +55,8 @@ def config_to_dict(cfg: Any) -> Any:
         return [config_to_dict(v) for v in cfg]
     if isinstance(cfg, Path):
         return str(cfg)
+    if isinstance(cfg, np.ndarray):
+        return cfg.tolist()
     return cfg
 
 
@@ -238,8 +242,22 @@ def _convert(tp: Any, value: Any, source: str, key: str) -> Any:
         raise fail()
     if tp is float:
         if isinstance(value, (int, float)) and not isinstance(value, bool):
-            return float(value)
+            try:
+                number = float(value)
+            except OverflowError:
+                raise fail() from None
+            if not math.isfinite(number):
+                raise ConfigError(f"{source}: key '{key}' must be a finite number, got {value!r}")
+            return number
         raise fail()
+    if tp is np.ndarray:
+        try:
+            array = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError, OverflowError):
+            raise fail() from None
+        if array.dtype == object or not np.all(np.isfinite(array)):
+            raise ConfigError(f"{source}: key '{key}' must be an array of finite numbers")
+        return array
     if tp is str:
         if isinstance(value, str):
             return value
