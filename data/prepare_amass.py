@@ -6,7 +6,8 @@
 AMASS_ROOT holds the unpacked sub-datasets (CMU/, BMLrub/, KIT/, ...), SMPL+H G
 ``*_poses.npz`` or SMPL-X ``*_stageii.npz``. The split is by sub-dataset (test: BMLrub;
 validation: HumanEva, MPI_HDM05, SFU, MPI_mosh; training: the rest); see
-:mod:`gaitnet.motion.amass` for the selection rules and the file layout.
+:mod:`gaitnet.motion.amass` for the selection rules and :mod:`gaitnet.motion.prepared` for the
+file layout.
 """
 
 from __future__ import annotations
@@ -17,13 +18,8 @@ import sys
 from tqdm import tqdm
 
 from gaitnet.errors import GaitnetError
-from gaitnet.motion.amass import (
-    DEFAULT_EXCLUDE,
-    DEFAULT_INCLUDE,
-    TARGET_FPS,
-    DatasetSplit,
-    prepare_walking_subset,
-)
+from gaitnet.motion.amass import DEFAULT_EXCLUDE, DEFAULT_INCLUDE, TARGET_FPS, DatasetSplit
+from gaitnet.motion.prepared import prepare_walking_subset
 
 
 def main(argv: list[str] | None = None) -> int:

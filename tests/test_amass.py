@@ -1,4 +1,4 @@
-"""AMASS loader: both file flavours, resampling by time, heading, selection, split, errors."""
+"""AMASS reader, prepared file, windows: flavours, resampling by time, heading, split, errors."""
 
 from __future__ import annotations
 
@@ -15,18 +15,16 @@ from scipy.spatial.transform import Rotation
 from gaitnet.motion.amass import (
     AmassError,
     DatasetSplit,
-    WalkingWindows,
     find_amass_files,
-    heading_angle,
     is_walking_clip,
     load_amass_clip,
-    load_prepared,
-    normalise_heading,
-    prepare_walking_subset,
     read_amass_npz,
 )
 from gaitnet.motion.gcn import split_pose_features
+from gaitnet.motion.heading import heading_angle, normalise_heading
+from gaitnet.motion.prepared import load_prepared, prepare_walking_subset
 from gaitnet.motion.skeleton import ROTATED_SMPL_INDICES, builtin_skeleton, forward_kinematics
+from gaitnet.motion.windows import WalkingWindows
 
 LOWER = list(ROTATED_SMPL_INDICES)
 

@@ -17,7 +17,8 @@ from scipy.spatial.transform import Rotation
 
 from gaitnet.config import config_keys, load_config
 from gaitnet.errors import GaitnetError
-from gaitnet.motion.amass import DatasetSplit, prepare_walking_subset
+from gaitnet.motion.amass import DatasetSplit
+from gaitnet.motion.prepared import prepare_walking_subset
 from gaitnet.training.checkpoint import (
     CHECKPOINT_KEYS,
     CheckpointError,

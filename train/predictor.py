@@ -33,7 +33,6 @@ from tqdm import tqdm
 from gaitnet.config import config_to_dict, load_config, save_config
 from gaitnet.errors import GaitnetError
 from gaitnet.io.atomic import atomic_write_text
-from gaitnet.motion.amass import load_prepared
 from gaitnet.motion.evaluation import (
     Predictor,
     evaluate_predictors,
@@ -42,6 +41,7 @@ from gaitnet.motion.evaluation import (
 )
 from gaitnet.motion.gcn import DCTGCN, PredictorConfig
 from gaitnet.motion.losses import joint_positions, mean_angle_error, motion_loss
+from gaitnet.motion.prepared import load_prepared
 from gaitnet.training.checkpoint import git_hash, load_checkpoint, save_checkpoint
 from gaitnet.training.distributed import (
     all_reduce_sum,

@@ -1,6 +1,10 @@
-"""AMASS walking clips for the motion predictor (thesis sec. 4.2.2).
+"""AMASS motion files: read, resample to 30 fps, select walking clips, split (thesis sec. 4.2.2).
 
-Reading. Two AMASS file flavours are understood (thesis-notes.md, ecosystem.md):
+This module reads AMASS source files only; the prepared training file is
+:mod:`gaitnet.motion.prepared`, heading normalisation :mod:`gaitnet.motion.heading` and the
+torch Dataset of training windows :mod:`gaitnet.motion.windows`.
+
+Reading. Two AMASS file flavours are understood (docs/thesis-notes.md, docs/ecosystem.md):
 
 * SMPL+H G ``*_poses.npz``: ``poses`` (T, 156) (joint ``k``'s axis-angle at columns
   ``3k : 3k+3``, joint 0 the root orientation), ``trans`` (T, 3), ``betas`` (16),
@@ -24,58 +28,36 @@ file (paths relative to the AMASS root, one per line, ``#`` comments). The split
 sub-dataset, the first folder under the AMASS root, following LTD / HisRepItself
 (:class:`DatasetSplit`): test = BMLrub (formerly BioMotionLab_NTroje); validation = HumanEva,
 MPI_HDM05 (HDM05), SFU, MPI_mosh (MoSh); training = every other sub-dataset.
-
-Heading normalisation. AMASS's world is z up. Each training window is rotated about the world
-vertical so that the body's heading at the LAST OBSERVED frame is +x (DESIGN.md: x forward),
-and its translation is taken relative to that frame horizontally (:func:`normalise_heading`).
-The heading is the body's forward axis (SMPL's canonical +z, the way the rest pose faces)
-mapped by the root orientation and projected onto the floor. This also keeps the root
-axis-angle far from the ±π wrap (about 120° about (1, 1, 1)/√3 when upright and facing +x).
-
-Prepared file. :func:`prepare_walking_subset` writes one compressed ``.npz`` (no pickles) with
-the selected clips at 30 fps concatenated along time and an index (``clip_offset``); see
-:data:`PREPARED_KEYS`. :class:`WalkingWindows` serves heading-normalised windows of
-``n_past + n_future`` frames from it.
 """
 
 from __future__ import annotations
 
 import math
 import zipfile
-from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field, replace
+import zlib
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path, PurePosixPath
 from typing import Literal
 
 import numpy as np
-import torch
 from scipy.spatial.transform import Rotation, Slerp
-from torch.utils.data import Dataset
 
-from gaitnet.errors import GaitnetError
-from gaitnet.io.atomic import atomic_open
-from gaitnet.motion.gcn import pose_features
-from gaitnet.motion.skeleton import N_ROTATED, ROTATED_SMPL_INDICES
+from gaitnet.errors import InputError
+from gaitnet.motion.skeleton import ROTATED_SMPL_INDICES
 
 __all__ = [
     "DEFAULT_EXCLUDE",
     "DEFAULT_INCLUDE",
-    "PREPARED_FORMAT_VERSION",
-    "PREPARED_KEYS",
+    "NPZ_READ_ERRORS",
     "TARGET_FPS",
     "AmassError",
     "DatasetSplit",
     "MotionClip",
-    "PrepareReport",
-    "PreparedWalking",
-    "WalkingWindows",
+    "Split",
     "find_amass_files",
-    "heading_angle",
     "is_walking_clip",
     "load_amass_clip",
-    "load_prepared",
-    "normalise_heading",
-    "prepare_walking_subset",
     "read_amass_npz",
     "read_clip_list",
     "resample_clip",
@@ -84,31 +66,24 @@ __all__ = [
 TARGET_FPS = 30.0
 DEFAULT_INCLUDE: tuple[str, ...] = ("walk",)
 DEFAULT_EXCLUDE: tuple[str, ...] = ("backward", "stair")
-PREPARED_FORMAT_VERSION = 1
-#: Arrays of a prepared file: C clips, N frames in all, B = longest betas.
-PREPARED_KEYS: dict[str, str] = {
-    "format_version": "() int: PREPARED_FORMAT_VERSION",
-    "fps": "() float: frame rate of every clip (30)",
-    "clip_name": "(C,) str: path relative to the AMASS root",
-    "clip_dataset": "(C,) str: sub-dataset (first folder under the root)",
-    "clip_split": "(C,) str: 'train' | 'val' | 'test'",
-    "clip_gender": "(C,) str",
-    "clip_source_fps": "(C,) float64: frame rate of the source file",
-    "clip_offset": "(C+1,) int64: frames of clip c are [offset[c], offset[c+1])",
-    "betas": "(C, B) float32, zero-padded",
-    "root_orient": "(N, 3) float32: world-from-pelvis axis-angle (AMASS world, z up)",
-    "joint_aa": "(N, 8, 3) float32: local axis-angle of SMPL joints 1, 2, 4, 5, 7, 8, 10, 11",
-    "trans": "(N, 3) float32: SMPL translation [m]",
-}
-
 _SMPLH_KEYS = ("poses", "trans", "betas", "gender", "mocap_framerate")
 _SMPLX_KEYS = ("root_orient", "pose_body", "trans", "betas", "gender", "mocap_frame_rate")
-_FORWARD_B = np.array([0.0, 0.0, 1.0])  # SMPL canonical frame: the rest pose faces +z
 
 Split = Literal["train", "val", "test"]
 
 
-class AmassError(GaitnetError):
+#: What reading a broken ``.npz`` raises (numpy, zipfile, zlib): caught and named by readers.
+NPZ_READ_ERRORS: tuple[type[BaseException], ...] = (
+    OSError,
+    ValueError,
+    EOFError,
+    KeyError,
+    zipfile.BadZipFile,
+    zlib.error,
+)
+
+
+class AmassError(InputError):
     """An AMASS file, clip list or prepared file is unusable; the message names file and key."""
 
 
@@ -151,8 +126,8 @@ def _get(data: np.lib.npyio.NpzFile, path: Path, key: str, flavour: str) -> np.n
         )
     try:
         return data[key]
-    except ValueError as exc:  # object arrays need pickles, which we never load
-        raise AmassError(f"{path}: key {key!r} is not a plain array ({exc})") from exc
+    except NPZ_READ_ERRORS as exc:  # object arrays need pickles, which we never load
+        raise AmassError(f"{path}: key {key!r} is not a readable plain array ({exc})") from exc
 
 
 def _finite(path: Path, key: str, a: np.ndarray) -> np.ndarray:
@@ -215,7 +190,7 @@ def read_amass_npz(path: str | Path, *, amass_root: str | Path | None = None) ->
     path = Path(path)
     try:
         data = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+    except NPZ_READ_ERRORS as exc:
         raise AmassError(f"{path}: not a readable .npz file ({exc})") from exc
     if not isinstance(data, np.lib.npyio.NpzFile):
         raise AmassError(f"{path}: expected an .npz archive of named arrays, found one array")
@@ -272,8 +247,8 @@ def resample_clip(clip: MotionClip, fps: float = TARGET_FPS) -> MotionClip:
     Rotations (root and joints) are slerped between the bracketing source frames, the
     translation is linear in time. The output covers ``[0, duration]``.
     """
-    if not fps > 0:
-        raise ValueError(f"fps must be positive, got {fps}")
+    if not (math.isfinite(fps) and fps > 0):
+        raise InputError(f"resampling rate (fps) must be a positive number, got {fps}")
     t_src = np.arange(clip.n_frames) / clip.fps
     n_out = int(math.floor(clip.duration_s * fps + 1e-6)) + 1
     t_out = np.minimum(np.arange(n_out) / fps, t_src[-1])
@@ -290,42 +265,6 @@ def load_amass_clip(
 ) -> MotionClip:
     """:func:`read_amass_npz` then :func:`resample_clip` to ``fps`` (30 by default)."""
     return resample_clip(read_amass_npz(path, amass_root=amass_root), fps)
-
-
-# --------------------------------------------------------------------------- heading
-
-
-def heading_angle(root_orient: np.ndarray) -> np.ndarray:
-    """Heading (yaw about world +z) [rad] of the body's forward axis for (..., 3) axis-angles.
-
-    Forward is SMPL's canonical +z mapped by the root orientation, projected on the floor;
-    0 means facing +x.
-    """
-    root_orient = np.asarray(root_orient, dtype=np.float64)
-    flat = root_orient.reshape(-1, 3)
-    f = Rotation.from_rotvec(flat).apply(_FORWARD_B)
-    return np.arctan2(f[:, 1], f[:, 0]).reshape(root_orient.shape[:-1])
-
-
-def normalise_heading(
-    root_orient: np.ndarray, trans: np.ndarray, ref: int
-) -> tuple[np.ndarray, np.ndarray, float]:
-    """Rotate a window about world z so the heading at frame ``ref`` is +x.
-
-    Returns ``(root_orient', trans', yaw)`` with ``R' = Rz(−yaw) R`` and
-    ``trans' = Rz(−yaw) (trans − [trans_ref,x, trans_ref,y, 0])``. Joint positions from forward
-    kinematics then equal ``Rz(−yaw)`` times the original ones plus a constant offset
-    (``(I − Rz) J_0`` minus the reference shift), so the motion is unchanged relative to any of
-    its frames; the pelvis at frame ``ref`` sits at the rest pelvis's x, y (a few mm).
-    """
-    root_orient = np.asarray(root_orient, dtype=np.float64)
-    trans = np.asarray(trans, dtype=np.float64)
-    yaw = float(heading_angle(root_orient[ref]))
-    Rz = Rotation.from_rotvec([0.0, 0.0, -yaw])
-    root_n = (Rz * Rotation.from_rotvec(root_orient)).as_rotvec()
-    shift = np.array([trans[ref, 0], trans[ref, 1], 0.0])
-    trans_n = Rz.apply(trans - shift)
-    return root_n, trans_n, yaw
 
 
 # --------------------------------------------------------------------------- selection, split
@@ -389,252 +328,29 @@ def find_amass_files(amass_root: str | Path) -> list[Path]:
     return sorted(p for p in root.rglob("*.npz") if p.name.endswith(("_poses.npz", "_stageii.npz")))
 
 
-# --------------------------------------------------------------------------- prepared file
+_MOVED = {
+    "PREPARED_FORMAT_VERSION": "gaitnet.motion.prepared",
+    "PREPARED_KEYS": "gaitnet.motion.prepared",
+    "PrepareReport": "gaitnet.motion.prepared",
+    "PreparedWalking": "gaitnet.motion.prepared",
+    "load_prepared": "gaitnet.motion.prepared",
+    "prepare_walking_subset": "gaitnet.motion.prepared",
+    "heading_angle": "gaitnet.motion.heading",
+    "normalise_heading": "gaitnet.motion.heading",
+    "WalkingWindows": "gaitnet.motion.windows",
+}
 
 
-@dataclass(frozen=True)
-class PrepareReport:
-    """What :func:`prepare_walking_subset` wrote and skipped."""
+def __getattr__(name: str) -> object:
+    """Transitional: names that moved out of this module still resolve (with a warning)."""
+    if name not in _MOVED:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    import importlib
+    import warnings
 
-    out_file: Path
-    n_clips: dict[str, int]
-    n_frames: dict[str, int]
-    n_candidates: int
-    skipped: list[tuple[str, str]] = field(default_factory=list)
-
-
-def prepare_walking_subset(
-    amass_root: str | Path,
-    out_file: str | Path,
-    *,
-    include: Sequence[str] = DEFAULT_INCLUDE,
-    exclude: Sequence[str] = DEFAULT_EXCLUDE,
-    clip_list: str | Path | None = None,
-    split: DatasetSplit | None = None,
-    fps: float = TARGET_FPS,
-    min_frames: int = 20,
-    on_error: Literal["raise", "skip"] = "raise",
-    progress: Callable[[Iterable[Path], int], Iterable[Path]] | None = None,
-) -> PrepareReport:
-    """Select walking clips under ``amass_root``, resample to ``fps`` and write ``out_file``.
-
-    Clips come from ``clip_list`` (paths relative to the root; keywords are then ignored) or
-    from the file-name keywords ``include``/``exclude``. Clips shorter than ``min_frames``
-    after resampling are skipped (listed in the report). A broken file raises
-    :class:`AmassError` (``on_error="raise"``) or is skipped and listed (``"skip"``).
-    ``progress(iterable, total)`` may wrap the file loop (e.g. tqdm). The file is written
-    atomically; its layout is :data:`PREPARED_KEYS`.
-    """
-    root = Path(amass_root)
-    split = DatasetSplit() if split is None else split
-    if clip_list is not None:
-        wanted = read_clip_list(clip_list)
-        files = [root / rel for rel in wanted]
-        missing = [rel for rel, f in zip(wanted, files, strict=True) if not f.is_file()]
-        if missing:
-            shown = ", ".join(missing[:5]) + (" ..." if len(missing) > 5 else "")
-            raise AmassError(
-                f"{clip_list}: {len(missing)} listed clip(s) not found under {root}: {shown}"
-            )
-    else:
-        files = [
-            f
-            for f in find_amass_files(root)
-            if is_walking_clip(f.relative_to(root).as_posix(), include, exclude)
-        ]
-    if not files:
-        raise AmassError(
-            f"{root}: no walking clips found (include={list(include)}, exclude={list(exclude)})"
-        )
-    iterator: Iterable[Path] = files if progress is None else progress(files, len(files))
-    clips: list[MotionClip] = []
-    skipped: list[tuple[str, str]] = []
-    for f in iterator:
-        try:
-            clip = load_amass_clip(f, amass_root=root, fps=fps)
-        except AmassError as exc:
-            if on_error == "raise":
-                raise
-            skipped.append((str(f), str(exc)))
-            continue
-        if clip.n_frames < min_frames:
-            skipped.append((clip.name, f"{clip.n_frames} frames < min_frames {min_frames}"))
-            continue
-        clips.append(clip)
-    if not clips:
-        raise AmassError(f"{root}: none of {len(files)} candidate clips could be used")
-
-    n_betas = max(c.betas.shape[0] for c in clips)
-    betas = np.zeros((len(clips), n_betas), dtype=np.float32)
-    for i, c in enumerate(clips):
-        betas[i, : c.betas.shape[0]] = c.betas
-    splits = [split.split_of(c.dataset) for c in clips]
-    lengths = np.array([c.n_frames for c in clips], dtype=np.int64)
-    arrays = {
-        "format_version": np.array(PREPARED_FORMAT_VERSION, dtype=np.int64),
-        "fps": np.array(float(fps)),
-        "clip_name": np.array([c.name for c in clips], dtype=str),
-        "clip_dataset": np.array([c.dataset for c in clips], dtype=str),
-        "clip_split": np.array(splits, dtype=str),
-        "clip_gender": np.array([c.gender for c in clips], dtype=str),
-        "clip_source_fps": np.array([c.source_fps for c in clips], dtype=np.float64),
-        "clip_offset": np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
-        "betas": betas,
-        "root_orient": np.concatenate([c.root_orient for c in clips]).astype(np.float32),
-        "joint_aa": np.concatenate([c.joint_aa for c in clips]).astype(np.float32),
-        "trans": np.concatenate([c.trans for c in clips]).astype(np.float32),
-    }
-    out_file = Path(out_file)
-    with atomic_open(out_file, "wb") as handle:
-        np.savez_compressed(handle, **arrays)
-    n_clips = {s: 0 for s in ("train", "val", "test")}
-    n_frames = {s: 0 for s in ("train", "val", "test")}
-    for s, n in zip(splits, lengths, strict=True):
-        n_clips[s] += 1
-        n_frames[s] += int(n)
-    return PrepareReport(out_file, n_clips, n_frames, len(files), skipped)
-
-
-@dataclass(frozen=True, eq=False)
-class PreparedWalking:
-    """A prepared file in memory (see :data:`PREPARED_KEYS`)."""
-
-    path: Path
-    fps: float
-    clip_name: np.ndarray
-    clip_dataset: np.ndarray
-    clip_split: np.ndarray
-    clip_gender: np.ndarray
-    clip_source_fps: np.ndarray
-    clip_offset: np.ndarray
-    betas: np.ndarray
-    root_orient: np.ndarray
-    joint_aa: np.ndarray
-    trans: np.ndarray
-
-    @property
-    def n_clips(self) -> int:
-        return int(self.clip_name.shape[0])
-
-    def clip(self, i: int) -> MotionClip:
-        """Clip ``i`` as a :class:`MotionClip` (float64 copies)."""
-        a, b = int(self.clip_offset[i]), int(self.clip_offset[i + 1])
-        return MotionClip(
-            name=str(self.clip_name[i]),
-            dataset=str(self.clip_dataset[i]),
-            fps=self.fps,
-            root_orient=self.root_orient[a:b].astype(np.float64),
-            joint_aa=self.joint_aa[a:b].astype(np.float64),
-            trans=self.trans[a:b].astype(np.float64),
-            betas=self.betas[i].astype(np.float64),
-            gender=str(self.clip_gender[i]),
-            source_fps=float(self.clip_source_fps[i]),
-        )
-
-
-def load_prepared(path: str | Path) -> PreparedWalking:
-    """Load and check a file written by :func:`prepare_walking_subset`."""
-    path = Path(path)
-    try:
-        data = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, zipfile.BadZipFile) as exc:
-        raise AmassError(f"{path}: not a readable prepared .npz ({exc})") from exc
-    with data:
-        missing = [k for k in PREPARED_KEYS if k not in data.files]
-        if missing:
-            raise AmassError(f"{path}: missing key(s) {missing}; re-run the AMASS preparation")
-        arrays = {k: data[k] for k in PREPARED_KEYS}
-    version = int(arrays.pop("format_version"))
-    if version != PREPARED_FORMAT_VERSION:
-        raise AmassError(
-            f"{path}: key 'format_version' is {version}, this gaitnet reads "
-            f"{PREPARED_FORMAT_VERSION}; re-run the AMASS preparation"
-        )
-    C = arrays["clip_name"].shape[0]
-    offset = arrays["clip_offset"]
-    N = arrays["root_orient"].shape[0]
-    checks = {
-        "clip_offset": offset.shape == (C + 1,)
-        and offset[0] == 0
-        and offset[-1] == N
-        and bool(np.all(np.diff(offset) > 0)),
-        "root_orient": arrays["root_orient"].shape == (N, 3),
-        "joint_aa": arrays["joint_aa"].shape == (N, N_ROTATED, 3),
-        "trans": arrays["trans"].shape == (N, 3),
-        "betas": arrays["betas"].ndim == 2 and arrays["betas"].shape[0] == C,
-    }
-    for key in ("clip_dataset", "clip_split", "clip_gender", "clip_source_fps"):
-        checks[key] = arrays[key].shape == (C,)
-    for key, ok in checks.items():
-        if not ok:
-            raise AmassError(f"{path}: key {key!r} has an inconsistent shape")
-    for key in ("root_orient", "joint_aa", "trans", "betas"):
-        if not np.all(np.isfinite(arrays[key])):
-            raise AmassError(f"{path}: key {key!r} contains NaN or inf")
-    fps = float(arrays.pop("fps"))
-    return PreparedWalking(path=path, fps=fps, **arrays)
-
-
-class WalkingWindows(Dataset):
-    """Heading-normalised windows of ``n_past + n_future`` frames from a prepared file.
-
-    Windows start every ``stride`` frames inside each clip of ``split``. Item ``i`` is a dict
-    of float32 tensors: ``poses`` (W, 21) in the node layout of :mod:`gaitnet.motion.gcn`,
-    ``trans`` (W, 3), ``betas`` (B,), and ``clip`` (int index into the prepared file). With
-    ``normalise_heading`` (default) each window goes through :func:`normalise_heading` with
-    the last observed frame (``n_past − 1``) as reference.
-    """
-
-    def __init__(
-        self,
-        prepared: str | Path | PreparedWalking,
-        split: Split = "train",
-        *,
-        n_past: int = 10,
-        n_future: int = 10,
-        stride: int = 5,
-        normalise_heading: bool = True,
-    ):
-        self.data = prepared if isinstance(prepared, PreparedWalking) else load_prepared(prepared)
-        if split not in ("train", "val", "test"):
-            raise ValueError(f"split must be 'train', 'val' or 'test', got {split!r}")
-        if n_past < 1 or n_future < 0 or stride < 1:
-            raise ValueError(
-                f"need n_past >= 1, n_future >= 0, stride >= 1; got {n_past}, {n_future}, {stride}"
-            )
-        self.split = split
-        self.n_past = int(n_past)
-        self.window = int(n_past + n_future)
-        self.normalise = bool(normalise_heading)
-        index = []
-        for c in np.flatnonzero(self.data.clip_split == split):
-            a, b = int(self.data.clip_offset[c]), int(self.data.clip_offset[c + 1])
-            for start in range(a, b - self.window + 1, int(stride)):
-                index.append((int(c), start))
-        if not index:
-            raise AmassError(
-                f"{self.data.path}: no windows of {self.window} frames in split {split!r}"
-            )
-        self.index = np.array(index, dtype=np.int64)
-
-    @property
-    def fps(self) -> float:
-        return self.data.fps
-
-    def __len__(self) -> int:
-        return int(self.index.shape[0])
-
-    def __getitem__(self, i: int) -> dict[str, torch.Tensor]:
-        clip, start = (int(v) for v in self.index[i])
-        sl = slice(start, start + self.window)
-        root = self.data.root_orient[sl].astype(np.float64)
-        trans = self.data.trans[sl].astype(np.float64)
-        if self.normalise:
-            root, trans, _ = normalise_heading(root, trans, self.n_past - 1)
-        poses = pose_features(root, self.data.joint_aa[sl])
-        return {
-            "poses": torch.from_numpy(poses.astype(np.float32)),
-            "trans": torch.from_numpy(trans.astype(np.float32)),
-            "betas": torch.from_numpy(self.data.betas[clip].astype(np.float32)),
-            "clip": torch.tensor(clip),
-        }
+    warnings.warn(
+        f"gaitnet.motion.amass.{name} moved to {_MOVED[name]}.{name}",
+        DeprecationWarning,
+        stacklevel=2,
+    )
+    return getattr(importlib.import_module(_MOVED[name]), name)

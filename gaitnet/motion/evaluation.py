@@ -2,7 +2,7 @@
 
 Protocol. Each test window holds ``n_past`` observed and ``n_future`` true future poses in the
 21-node layout of :mod:`gaitnet.motion.gcn` (heading-normalised as in training, see
-:class:`gaitnet.motion.amass.WalkingWindows`). A predictor maps the observed poses
+:class:`gaitnet.motion.windows.WalkingWindows`). A predictor maps the observed poses
 (B, n_past, 21) to future poses (B, n_future, 21). For every horizon ``k = 1 .. n_future``
 (``k / fps`` s: 33 … 333 ms at 30 fps) we report
 

@@ -10,7 +10,7 @@ axis-angle components (thesis sec. 4.2.4: ``x̄_i ∈ R^21``). Node ``3j + c`` h
 ``c`` of the rotation of :data:`NODE_JOINTS` ``[j]``:
 
 * nodes 0–2: the ROOT ORIENTATION (SMPL joint 0, pelvis, world-from-pelvis, in the
-  heading-normalised world of :mod:`gaitnet.motion.amass`), so the root node carries the
+  heading-normalised world of :mod:`gaitnet.motion.heading`), so the root node carries the
   orientation of the body, not a local joint rotation;
 * nodes 3–20: the local rotations (relative to the parent, SMPL convention) of L_hip 1,
   R_hip 2, L_knee 4, R_knee 5, L_ankle 7, R_ankle 8.

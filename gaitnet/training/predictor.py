@@ -6,11 +6,11 @@ documented in ``docs/predictor.md``); ``train/predictor.py`` reads it with
 Adam 5e-4, ×0.96 every 2 epochs (StepLR), batch 32, 50 epochs, gradient-norm clip 1 (LTD),
 10 past → 10 future poses at 30 fps, DCT depth 20, hidden 256, 12 blocks, dropout 0.5.
 
-Data: a prepared file of :func:`gaitnet.motion.amass.prepare_walking_subset` (from AMASS or
-from the synthetic clips of :mod:`gaitnet.motion.synthetic`). The split mapping is a config
+Data: a prepared file of :func:`gaitnet.motion.prepared.prepare_walking_subset` (from AMASS or
+from the simulator's synthetic AMASS-format clips). The split mapping is a config
 value (``data.split``, a :class:`~gaitnet.motion.amass.DatasetSplit`): when given, each
 clip's split is recomputed from its sub-dataset, otherwise the split stored in the file is
-used. Windows are heading-normalised (:class:`~gaitnet.motion.amass.WalkingWindows`) and, with
+used. Windows are heading-normalised (:class:`~gaitnet.motion.windows.WalkingWindows`) and, with
 ``data.preload``, materialised once as one float32 tensor.
 
 Skeleton: the MPJPE term (eq. 4.5) and the evaluation use ONE skeleton for every clip (as
@@ -31,9 +31,11 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from gaitnet.motion.amass import DatasetSplit, PreparedWalking, WalkingWindows, load_prepared
+from gaitnet.motion.amass import DatasetSplit
 from gaitnet.motion.gcn import NODE_JOINTS, PredictorConfig
+from gaitnet.motion.prepared import PreparedWalking, load_prepared
 from gaitnet.motion.skeleton import LowerBodySkeleton, builtin_skeleton
+from gaitnet.motion.windows import WalkingWindows
 
 __all__ = [
     "DataConfig",
