@@ -10,7 +10,7 @@ import pytest
 import yaml
 from sessionfactory import HEIGHT, WIDTH, make_tiny_session, tiny_calibration, tiny_frames, tiny_imu
 
-from gaitnet.errors import SessionError
+from gaitnet.errors import InputError, SessionError
 from gaitnet.io import SessionFolder, SessionWriter, copy_session, open_session
 
 
@@ -163,7 +163,7 @@ def test_non_rigid_extrinsic_is_rejected(tiny_session: Path) -> None:
     data = yaml.safe_load(path.read_text())
     data["T_CfromI"][0][0] = 2.0
     path.write_text(yaml.safe_dump(data))
-    with pytest.raises(SessionError, match="'T_CfromI' is not a rigid transform"):
+    with pytest.raises(SessionError, match="T_CfromI is not a rigid transform"):
         SessionFolder(tiny_session)
 
 
@@ -176,10 +176,10 @@ def test_writer_is_atomic_and_refuses_to_clobber(tmp_path: Path) -> None:
     assert not root.exists()
     assert list(tmp_path.iterdir()) == []
     make_tiny_session(root)
-    with pytest.raises(SessionError, match="output exists and is not empty"):
+    with pytest.raises(InputError, match="output exists and is not empty"):
         make_tiny_session(root)
     (tmp_path / "file").write_text("x")
-    with pytest.raises(SessionError, match="exists and is not a folder"):
+    with pytest.raises(InputError, match="exists and is not a folder"):
         SessionWriter(tmp_path / "file", tiny_calibration(), overwrite=True)
 
 

@@ -195,6 +195,44 @@ def publish_folder(staging: Path, root: Path) -> None:
     shutil.rmtree(old, ignore_errors=True)
 
 
+class StagedFolder:
+    """A hidden staging folder next to ``root`` that becomes ``root`` on :meth:`commit`.
+
+    The object form of :func:`staged_folder`, for writers whose lifetime is not one ``with``
+    block (e.g. :class:`gaitnet.io.SessionWriter`). Creating it checks ``root`` (it must not
+    exist, be empty, or ``overwrite`` is set), cleans what killed writers left next to it and
+    makes the empty staging folder :attr:`path`. :meth:`commit` swaps it into place
+    (:func:`publish_folder`); :meth:`abort` removes it and leaves ``root`` untouched. Both are
+    idempotent once one of them has run.
+    """
+
+    def __init__(self, root: str | Path, overwrite: bool = False) -> None:
+        self.root = check_output_folder(root, overwrite)
+        self.root.parent.mkdir(parents=True, exist_ok=True)
+        clean_leftovers(self.root)
+        self.path = self.root.parent / f".{self.root.name}.partial-{os.getpid()}"
+        _remove(self.path)
+        self.path.mkdir()
+        self.done = False
+
+    def commit(self) -> Path:
+        """Publish the staging folder as ``root`` and return ``root``."""
+        if self.done:
+            raise RuntimeError(f"{self.root}: staging folder already committed or aborted")
+        try:
+            publish_folder(self.path, self.root)
+        except BaseException:
+            self.abort()
+            raise
+        self.done = True
+        return self.root
+
+    def abort(self) -> None:
+        """Remove the staging folder; ``root`` keeps what it had."""
+        shutil.rmtree(self.path, ignore_errors=True)
+        self.done = True
+
+
 @contextlib.contextmanager
 def staged_folder(root: str | Path, overwrite: bool = False) -> Iterator[Path]:
     """Yield an empty hidden staging folder; on success it becomes ``root``.
@@ -202,19 +240,10 @@ def staged_folder(root: str | Path, overwrite: bool = False) -> Iterator[Path]:
     ``root`` must not exist, be empty, or (with ``overwrite``) is replaced. On an exception
     the staging folder is removed and ``root`` is untouched.
     """
-    root = check_output_folder(root, overwrite)
-    root.parent.mkdir(parents=True, exist_ok=True)
-    clean_leftovers(root)
-    staging = root.parent / f".{root.name}.partial-{os.getpid()}"
-    _remove(staging)
-    staging.mkdir()
+    stage = StagedFolder(root, overwrite)
     try:
-        yield staging
+        yield stage.path
     except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
+        stage.abort()
         raise
-    try:
-        publish_folder(staging, root)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
+    stage.commit()

@@ -8,16 +8,19 @@ from __future__ import annotations
 
 import io
 import logging
+import math
+import re
 from pathlib import Path
 
 import numpy as np
 
 from gaitnet.errors import SessionError
-from gaitnet.io.types import ImuSamples
+from gaitnet.io.types import T_NS_MAX, ImuSamples
 
 log = logging.getLogger(__name__)
 
 IMU_HEADER = "t_ns,ax,ay,az,gx,gy,gz"
+_T_NS = re.compile(r"^[0-9]{1,19}$")
 
 
 def imu_csv_text(imu: ImuSamples) -> str:
@@ -80,27 +83,23 @@ def validate_imu(
 
 
 def read_imu_csv(path: Path, gap_warn_s: float = 0.025, gap_error_s: float = 1.0) -> ImuSamples:
-    """Read and validate ``imu.csv``."""
+    """Read and validate ``imu.csv``.
+
+    Errors (:class:`SessionError`, naming the file and line): a missing or empty file, bytes
+    that are not UTF-8, a wrong header, a row without 7 columns, a timestamp that is not a
+    decimal integer in ``[0, 2**63)``, a value that is not a number, NaN or infinity, and the
+    checks of :func:`validate_imu`.
+    """
     if not path.is_file():
-        raise SessionError(f"{path}: missing (every session folder needs imu.csv)")
-    with open(path, encoding="utf-8") as handle:
-        header = handle.readline().strip().replace(" ", "")
-        if header != IMU_HEADER:
-            raise SessionError(f"{path}: header must be '{IMU_HEADER}', found '{header}'")
-        rows: list[tuple[int, list[float]]] = []
-        first_line: int | None = None
-        for line_no, line in enumerate(handle, start=2):
-            line = line.strip()
-            if not line or line.startswith("#"):
-                continue
-            parts = line.split(",")
-            if len(parts) != 7:
-                raise SessionError(f"{path}: line {line_no} has {len(parts)} columns, expected 7")
-            try:
-                rows.append((int(parts[0]), [float(p) for p in parts[1:]]))
-                first_line = line_no if first_line is None else first_line
-            except ValueError as exc:
-                raise SessionError(f"{path}: line {line_no} is not numeric ({line!r})") from exc
+        what = "is not a file" if path.exists() else "missing"
+        raise SessionError(f"{path}: {what} (every session folder needs imu.csv)")
+    try:
+        with open(path, encoding="utf-8", newline="") as handle:
+            rows, first_line = _parse_rows(path, handle)
+    except UnicodeDecodeError as exc:
+        raise SessionError(f"{path}: not UTF-8 text (bad byte at offset {exc.start})") from None
+    except OSError as exc:
+        raise SessionError(f"{path}: cannot read ({exc.strerror})") from None
     if not rows:
         raise SessionError(f"{path}: no IMU samples")
     t_ns = np.array([r[0] for r in rows], dtype=np.int64)
@@ -108,3 +107,36 @@ def read_imu_csv(path: Path, gap_warn_s: float = 0.025, gap_error_s: float = 1.0
     imu = ImuSamples(t_ns=t_ns, accel=values[:, :3], gyro=values[:, 3:])
     validate_imu(imu, str(path), gap_warn_s, gap_error_s, first_line=first_line)
     return imu
+
+
+def _parse_rows(path: Path, handle) -> tuple[list[tuple[int, list[float]]], int | None]:
+    first = handle.readline()
+    if not first:
+        raise SessionError(f"{path}: empty file (expected the header '{IMU_HEADER}')")
+    header = first.strip().replace(" ", "")
+    if header != IMU_HEADER:
+        shown = header if len(header) <= 60 else header[:60] + "…"
+        raise SessionError(f"{path}: header must be '{IMU_HEADER}', found {shown!r}")
+    rows: list[tuple[int, list[float]]] = []
+    first_line: int | None = None
+    for line_no, line in enumerate(handle, start=2):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        parts = line.split(",")
+        if len(parts) != 7:
+            raise SessionError(f"{path}: line {line_no} has {len(parts)} columns, expected 7")
+        stamp = parts[0].strip()
+        if not _T_NS.match(stamp) or int(stamp) > T_NS_MAX:
+            raise SessionError(
+                f"{path}: line {line_no}: timestamp {stamp[:30]!r} is not integer ns in [0, 2**63)"
+            )
+        try:
+            values = [float(p) for p in parts[1:]]
+        except ValueError:
+            raise SessionError(f"{path}: line {line_no} is not numeric ({line[:80]!r})") from None
+        if not all(math.isfinite(v) for v in values):
+            raise SessionError(f"{path}: non-finite IMU value at line {line_no} (t_ns={stamp})")
+        rows.append((int(stamp), values))
+        first_line = line_no if first_line is None else first_line
+    return rows, first_line

@@ -10,14 +10,20 @@ groundtruth/      optional (simulator)
 
 Opening a folder validates everything that is cheap to check (session.yaml, the IMU stream,
 that every colour frame has its depth frame, each PNG's size, type and completeness from its
-header); pixels are decoded only when a frame is requested.
+header); pixels are decoded only when a frame is requested. Frame file names are decimal
+nanoseconds in ``[0, 2**63)``.
+
+Symbolic links: a link inside the session folder whose target lies outside it (``session.yaml``,
+``imu.csv``, ``color/``, ``depth/`` or a frame file) is refused with a
+:class:`~gaitnet.errors.SessionError` naming the link and its target, so a session is
+self-contained and what ``check`` validated is what later stages read. Links that stay inside
+the folder are followed.
 """
 
 from __future__ import annotations
 
 import logging
-import os
-import shutil
+import re
 from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
@@ -25,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from gaitnet.errors import SessionError
-from gaitnet.io.atomic import atomic_write_text
+from gaitnet.io.atomic import StagedFolder, atomic_write_text
 from gaitnet.io.images import (
     check_png,
     depth_to_units,
@@ -35,24 +41,40 @@ from gaitnet.io.images import (
 )
 from gaitnet.io.imu_csv import imu_csv_text, read_imu_csv, validate_imu
 from gaitnet.io.session_yaml import read_session_yaml, session_yaml_text
-from gaitnet.io.types import Frame, ImuSamples, SessionCalibration
+from gaitnet.io.types import T_NS_MAX, Frame, ImuSamples, SessionCalibration
 
 log = logging.getLogger(__name__)
 
+_T_NS_NAME = re.compile(r"^[0-9]{1,19}$")
 
-def _frame_files(folder: Path) -> dict[int, Path]:
+
+def check_inside(path: Path, root: Path) -> None:
+    """Refuse ``path`` if it is a symbolic link whose target lies outside ``root``."""
+    if not path.is_symlink():
+        return
+    target = path.resolve()
+    if not target.is_relative_to(root.resolve()):
+        raise SessionError(
+            f"{path}: symbolic link to {target}, outside the session folder "
+            "(copy the file into the session instead)"
+        )
+
+
+def _frame_files(folder: Path, root: Path) -> dict[int, Path]:
     if not folder.is_dir():
-        raise SessionError(f"{folder}: missing folder")
+        what = "not a folder" if folder.exists() else "missing folder"
+        raise SessionError(f"{folder}: {what}")
+    check_inside(folder, root)
     files: dict[int, Path] = {}
     for path in folder.iterdir():
         if path.name.startswith("."):
             continue
         if path.suffix.lower() != ".png":
             raise SessionError(f"{path}: unexpected file (frames are <t_ns>.png)")
-        try:
-            t_ns = int(path.stem)
-        except ValueError as exc:
-            raise SessionError(f"{path}: file name is not a timestamp in ns") from exc
+        if not _T_NS_NAME.match(path.stem) or int(path.stem) > T_NS_MAX:
+            raise SessionError(f"{path}: file name is not a timestamp in ns (digits, below 2**63)")
+        check_inside(path, root)
+        t_ns = int(path.stem)
         if t_ns in files:
             raise SessionError(f"{path}: duplicate timestamp (also {files[t_ns].name})")
         files[t_ns] = path
@@ -72,9 +94,11 @@ class SessionFolder:
         self.root = Path(root)
         if not self.root.is_dir():
             raise SessionError(f"{self.root}: session folder not found")
+        for name in ("session.yaml", "imu.csv"):
+            check_inside(self.root / name, self.root)
         self._calib = read_session_yaml(self.root / "session.yaml")
-        color = _frame_files(self.root / "color")
-        depth = _frame_files(self.root / "depth")
+        color = _frame_files(self.root / "color", self.root)
+        depth = _frame_files(self.root / "depth", self.root)
         if not color:
             raise SessionError(f"{self.root / 'color'}: no frames")
         for t_ns, path in color.items():
@@ -140,14 +164,23 @@ class SessionFolder:
 class SessionWriter:
     """Write a session folder; it appears at ``root`` only when :meth:`close` succeeds.
 
-    Frames go to a staging folder next to ``root``; on success the staging folder is renamed
-    to ``root`` (atomic on one filesystem), so an interrupted write never leaves a folder that
-    looks like a complete session. Use as a context manager::
+    Frames go to a hidden staging folder next to ``root``
+    (:class:`gaitnet.io.atomic.StagedFolder`); on success it is swapped into place, so an
+    interrupted write never leaves a folder that looks like a complete session, and with
+    ``overwrite`` a kill during the swap leaves the old or the new session. Use as a context
+    manager::
 
         with SessionWriter(out, calib) as writer:
             writer.add_frame(t_ns, rgb, depth_m)
             writer.set_imu(imu)
             (writer.staging / "groundtruth").mkdir()   # extra content, optional
+
+    Data that does not fit the calibration or the format (image size or type, timestamps
+    out of order or out of int64 range, NaN in the IMU stream) raises
+    :class:`~gaitnet.errors.SessionError` naming the output folder; an output path that is a
+    file, or a non-empty folder without ``overwrite``, raises
+    :class:`~gaitnet.errors.InputError`. Non-finite or non-positive depths are written as 0
+    (invalid), as the format defines.
     """
 
     def __init__(
@@ -157,42 +190,51 @@ class SessionWriter:
         overwrite: bool = False,
         encode_threads: int = 1,
     ):
+        if not isinstance(calibration, SessionCalibration):
+            raise TypeError(f"calibration must be SessionCalibration, got {calibration!r}")
         self.root = Path(root)
         self.calibration = calibration
-        if self.root.exists() and not self.root.is_dir():
-            raise SessionError(f"{self.root}: output path exists and is not a folder")
-        occupied = self.root.is_dir() and any(self.root.iterdir())
-        if occupied and not overwrite:
-            raise SessionError(
-                f"{self.root}: output exists and is not empty "
-                "(choose another folder or overwrite it)"
-            )
         self.overwrite = overwrite
-        self.staging = self.root.parent / f".{self.root.name}.partial-{os.getpid()}"
-        if self.staging.exists():
-            shutil.rmtree(self.staging)
-        (self.staging / "color").mkdir(parents=True)
+        self._stage = StagedFolder(self.root, overwrite)
+        self.staging = self._stage.path
+        (self.staging / "color").mkdir()
         (self.staging / "depth").mkdir()
         self._times: list[int] = []
         self._imu: ImuSamples | None = None
         self._pool = ThreadPoolExecutor(encode_threads) if encode_threads > 0 else None
         self._pending: list[Future] = []
 
+    def _fail(self, what: str) -> SessionError:
+        return SessionError(f"{self.root}: {what}")
+
     def add_frame(self, t_ns: int, rgb: np.ndarray, depth_m: np.ndarray) -> None:
+        """Add one frame: ``rgb`` uint8 (H, W, 3), ``depth_m`` float metres (H, W)."""
         c, d = self.calibration.color, self.calibration.depth
+        if isinstance(t_ns, (bool, np.bool_)) or not isinstance(t_ns, (int, np.integer)):
+            raise self._fail(f"frame timestamp must be integer ns, got {t_ns!r}")
+        t_ns = int(t_ns)
+        if not 0 <= t_ns <= T_NS_MAX:
+            raise self._fail(f"frame timestamp {t_ns} ns is outside [0, 2**63)")
+        rgb, depth_m = np.asarray(rgb), np.asarray(depth_m)
         if rgb.shape != (c.height, c.width, 3) or rgb.dtype != np.uint8:
-            raise ValueError(
-                f"rgb must be uint8 {(c.height, c.width, 3)}, got {rgb.dtype} {rgb.shape}"
+            raise self._fail(
+                f"frame t_ns={t_ns}: colour must be uint8 {(c.height, c.width, 3)}, "
+                f"got {rgb.dtype} {rgb.shape}"
             )
-        if depth_m.shape != (d.height, d.width):
-            raise ValueError(f"depth must be {(d.height, d.width)}, got {depth_m.shape}")
+        if depth_m.shape != (d.height, d.width) or not np.issubdtype(depth_m.dtype, np.floating):
+            raise self._fail(
+                f"frame t_ns={t_ns}: depth must be float metres {(d.height, d.width)}, "
+                f"got {depth_m.dtype} {depth_m.shape}"
+            )
         if self._times and t_ns <= self._times[-1]:
-            raise ValueError(f"frame timestamps must increase ({t_ns} after {self._times[-1]})")
-        name = f"{int(t_ns)}.png"
+            raise self._fail(
+                f"frame timestamps must increase (t_ns={t_ns} after {self._times[-1]})"
+            )
+        name = f"{t_ns}.png"
         self.write_png(self.staging / "color" / name, rgb.copy())
         units = depth_to_units(depth_m, self.calibration.depth_scale_m)
         self.write_png(self.staging / "depth" / name, units)
-        self._times.append(int(t_ns))
+        self._times.append(t_ns)
 
     def write_png(self, path: Path, image: np.ndarray) -> None:
         """Encode and write ``image`` (not modified afterwards by the caller) in the background.
@@ -216,28 +258,43 @@ class SessionWriter:
         self._pending = still
 
     def set_imu(self, imu: ImuSamples) -> None:
-        validate_imu(imu, "IMU stream being written")
+        """Set the IMU stream (validated: ≥ 2 samples, increasing, finite, no gap > 1 s)."""
+        t = np.asarray(imu.t_ns)
+        if t.ndim != 1 or not np.issubdtype(t.dtype, np.integer):
+            raise self._fail(f"IMU timestamps must be integer ns, got {t.dtype} {t.shape}")
+        for name in ("accel", "gyro"):
+            v = np.asarray(getattr(imu, name))
+            if v.shape != (t.shape[0], 3) or not np.issubdtype(v.dtype, np.number):
+                raise self._fail(f"IMU {name} must be {(t.shape[0], 3)} numbers, got {v.shape}")
+        if t.size and (int(t.min()) < 0 or int(t.max()) > T_NS_MAX):
+            raise self._fail("IMU timestamps are outside [0, 2**63)")
+        validate_imu(imu, f"{self.root}: IMU stream")
         self._imu = imu
 
     def close(self) -> Path:
-        if self._imu is None:
-            raise ValueError("set_imu() was not called")
-        if not self._times:
-            raise ValueError("no frames were added")
-        self._raise_failures(block=True)
-        if self._pool is not None:
-            self._pool.shutdown()
-        atomic_write_text(self.staging / "session.yaml", session_yaml_text(self.calibration))
-        atomic_write_text(self.staging / "imu.csv", imu_csv_text(self._imu))
-        if self.root.exists():
-            shutil.rmtree(self.root)
-        os.replace(self.staging, self.root)
-        return self.root
+        """Write session.yaml and imu.csv, then publish the folder at ``root``."""
+        if self._stage.done:
+            return self.root
+        try:
+            if self._imu is None:
+                raise self._fail("no IMU stream was set (set_imu)")
+            if not self._times:
+                raise self._fail("no frames were added")
+            self._raise_failures(block=True)
+            if self._pool is not None:
+                self._pool.shutdown()
+            atomic_write_text(self.staging / "session.yaml", session_yaml_text(self.calibration))
+            atomic_write_text(self.staging / "imu.csv", imu_csv_text(self._imu))
+        except BaseException:
+            self.abort()
+            raise
+        return self._stage.commit()
 
     def abort(self) -> None:
+        """Drop everything written so far; ``root`` keeps what it had."""
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
-        shutil.rmtree(self.staging, ignore_errors=True)
+        self._stage.abort()
 
     def __enter__(self) -> SessionWriter:
         return self

@@ -1,192 +1,91 @@
-"""``session.yaml`` of the session folder v1: schema, parsing and serialisation.
+"""``session.yaml`` of the session folder v1: its one reader and its one writer.
 
-The file is validated with the same typed-config machinery as every other YAML file
-(:mod:`gaitnet.config`), so an unknown or mistyped key names the file and the key.
+The schema is :class:`~gaitnet.io.types.SessionCalibration` and the types it holds (their
+fields are the file's keys, their ``__post_init__`` checks are the file's value checks), plus
+the file-level key ``format_version``. The file is parsed with the same typed-config machinery
+as every other YAML file (:func:`gaitnet.config.parse_config`), so an unknown or mistyped key,
+a non-finite number or an out-of-range value is a :class:`~gaitnet.errors.SessionError` whose
+one-line message names the file and the key. It is written with
+:func:`gaitnet.config.config_to_dict` in a fixed key order, so the same calibration always
+gives the same bytes.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-import numpy as np
 import yaml
 
 from gaitnet.config import config_to_dict, parse_config
 from gaitnet.errors import ConfigError, SessionError
-from gaitnet.io.types import (
-    SESSION_FORMAT_VERSION,
-    AprilTagBoard,
-    CameraIntrinsics,
-    ImuNoise,
-    SessionCalibration,
-)
+from gaitnet.io.types import SESSION_FORMAT_VERSION, SessionCalibration
 
-Matrix4 = tuple[tuple[float, ...], ...]
+HEADER = "# gaitnet recorded session, folder format v1 (see docs/session-format.md)\n"
+MAX_BYTES = 1 << 20
+"""A session.yaml larger than this (1 MiB) is refused: calibration is a few kilobytes."""
 
 
-@dataclass(frozen=True)
-class IntrinsicsEntry:
-    width: int
-    height: int
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-    distortion: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
-
-
-@dataclass(frozen=True)
-class ImuNoiseEntry:
-    gyro_noise_density: float
-    accel_noise_density: float
-    gyro_bias_random_walk: float
-    accel_bias_random_walk: float
-
-
-@dataclass(frozen=True)
-class BoardEntry:
-    name: str
-    family: str
-    rows: int
-    cols: int
-    tag_size_m: float
-    gap_m: float
-    first_id: int
-    T_WfromBoard: Matrix4
-
-
-@dataclass(frozen=True)
-class SessionYaml:
-    format_version: int
-    color: IntrinsicsEntry
-    depth: IntrinsicsEntry
-    depth_scale_m: float
-    depth_aligned_to_color: bool
-    T_CfromI: Matrix4
-    device: str = "unknown"
-    imu_noise: ImuNoiseEntry | None = None
-    apriltag_boards: tuple[BoardEntry, ...] = ()
-    extra: dict | None = None
-
-
-def _matrix4(rows: Matrix4, source: str, key: str) -> np.ndarray:
-    T = np.asarray(rows, dtype=np.float64)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise SessionError(f"{source}: key '{key}' must be a finite 4×4 matrix")
-    if not np.allclose(T[3], [0, 0, 0, 1]) or not np.allclose(
-        T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-5
-    ):
-        raise SessionError(f"{source}: key '{key}' is not a rigid transform")
-    return T
-
-
-def _intrinsics(entry: IntrinsicsEntry, source: str, key: str) -> CameraIntrinsics:
-    if entry.width <= 0 or entry.height <= 0 or entry.fx <= 0 or entry.fy <= 0:
-        raise SessionError(f"{source}: key '{key}' has non-positive size or focal length")
-    return CameraIntrinsics(**config_to_dict(entry) | {"distortion": tuple(entry.distortion)})
+def _load_mapping(path: Path) -> dict[str, Any]:
+    source = str(path)
+    if not path.is_file():
+        what = "is not a file" if path.exists() else "missing"
+        raise SessionError(f"{source}: {what} (every session folder needs session.yaml)")
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise SessionError(f"{source}: cannot read ({exc.strerror})") from None
+    if len(raw) > MAX_BYTES:
+        raise SessionError(f"{source}: {len(raw)} bytes, too large for a session.yaml")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SessionError(f"{source}: not UTF-8 text (bad byte at offset {exc.start})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        why = " ".join(str(exc).split())
+        raise SessionError(f"{source}: not valid YAML ({why})") from None
+    except RecursionError:
+        raise SessionError(f"{source}: not valid YAML (nested too deeply)") from None
+    if data is None:
+        raise SessionError(f"{source}: empty file")
+    if not isinstance(data, dict):
+        raise SessionError(f"{source}: must be a mapping of keys, got {type(data).__name__}")
+    return data
 
 
 def read_session_yaml(path: Path) -> SessionCalibration:
     """Parse and validate ``session.yaml`` into a :class:`SessionCalibration`."""
+    path = Path(path)
     source = str(path)
-    if not path.is_file():
-        raise SessionError(f"{source}: missing (every session folder needs session.yaml)")
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise SessionError(f"{source}: not valid YAML ({exc})".replace("\n", " ")) from exc
-    if not isinstance(data, dict):
-        raise SessionError(f"{source}: must be a mapping of keys")
-    try:
-        entry = parse_config(SessionYaml, data, source)
-    except ConfigError as exc:
-        raise SessionError(str(exc)) from exc
-    if entry.format_version != SESSION_FORMAT_VERSION:
+    data = _load_mapping(path)
+    if "format_version" not in data:
+        raise SessionError(f"{source}: missing required key 'format_version'")
+    version = data.pop("format_version")
+    if version != SESSION_FORMAT_VERSION or isinstance(version, bool):
         raise SessionError(
-            f"{source}: format_version {entry.format_version} is not supported "
+            f"{source}: format_version {version!r} is not supported "
             f"(this gaitnet reads version {SESSION_FORMAT_VERSION})"
         )
-    if entry.depth_scale_m <= 0:
-        raise SessionError(f"{source}: key 'depth_scale_m' must be positive")
-    boards = tuple(
-        AprilTagBoard(
-            name=b.name,
-            family=b.family,
-            rows=b.rows,
-            cols=b.cols,
-            tag_size_m=b.tag_size_m,
-            gap_m=b.gap_m,
-            first_id=b.first_id,
-            T_WfromBoard=_matrix4(b.T_WfromBoard, source, f"apriltag_boards[{i}].T_WfromBoard"),
-        )
-        for i, b in enumerate(entry.apriltag_boards)
-    )
-    noise = ImuNoise(**config_to_dict(entry.imu_noise)) if entry.imu_noise else None
-    return SessionCalibration(
-        color=_intrinsics(entry.color, source, "color"),
-        depth=_intrinsics(entry.depth, source, "depth"),
-        depth_scale_m=entry.depth_scale_m,
-        depth_aligned_to_color=entry.depth_aligned_to_color,
-        T_CfromI=_matrix4(entry.T_CfromI, source, "T_CfromI"),
-        imu_noise=noise,
-        apriltag_boards=boards,
-        device=entry.device,
-        extra=dict(entry.extra or {}),
-    )
-
-
-def _intrinsics_dict(cam: CameraIntrinsics) -> dict:
-    return {
-        "width": int(cam.width),
-        "height": int(cam.height),
-        "fx": float(cam.fx),
-        "fy": float(cam.fy),
-        "cx": float(cam.cx),
-        "cy": float(cam.cy),
-        "distortion": [float(d) for d in cam.distortion],
-    }
-
-
-def _matrix_list(T: np.ndarray) -> list[list[float]]:
-    return [[float(v) for v in row] for row in np.asarray(T, dtype=np.float64)]
+    if "extra" in data and data["extra"] is None:
+        del data["extra"]  # "extra:" with nothing after it
+    try:
+        return parse_config(SessionCalibration, data, source)
+    except ConfigError as exc:
+        raise SessionError(str(exc)) from None
+    except RecursionError:
+        raise SessionError(f"{source}: key 'extra' is nested too deeply") from None
 
 
 def session_yaml_text(calib: SessionCalibration) -> str:
-    """Serialise a calibration to the text of ``session.yaml`` (deterministic)."""
-    data: dict = {
-        "format_version": SESSION_FORMAT_VERSION,
-        "device": calib.device,
-        "color": _intrinsics_dict(calib.color),
-        "depth": _intrinsics_dict(calib.depth),
-        "depth_scale_m": float(calib.depth_scale_m),
-        "depth_aligned_to_color": bool(calib.depth_aligned_to_color),
-        "T_CfromI": _matrix_list(calib.T_CfromI),
-        "imu_noise": None,
-        "apriltag_boards": [],
-    }
-    if calib.imu_noise is not None:
-        n = calib.imu_noise
-        data["imu_noise"] = {
-            "gyro_noise_density": float(n.gyro_noise_density),
-            "accel_noise_density": float(n.accel_noise_density),
-            "gyro_bias_random_walk": float(n.gyro_bias_random_walk),
-            "accel_bias_random_walk": float(n.accel_bias_random_walk),
-        }
-    for b in calib.apriltag_boards:
-        data["apriltag_boards"].append(
-            {
-                "name": b.name,
-                "family": b.family,
-                "rows": int(b.rows),
-                "cols": int(b.cols),
-                "tag_size_m": float(b.tag_size_m),
-                "gap_m": float(b.gap_m),
-                "first_id": int(b.first_id),
-                "T_WfromBoard": _matrix_list(b.T_WfromBoard),
-            }
-        )
-    if calib.extra:
-        data["extra"] = calib.extra
-    header = "# gaitnet recorded session, folder format v1 (see docs/session-format.md)\n"
-    return header + yaml.safe_dump(data, sort_keys=False, default_flow_style=None)
+    """Serialise a calibration to the text of ``session.yaml`` (deterministic).
+
+    Key order: ``format_version``, ``device``, then the calibration's fields in their declared
+    order; ``extra`` only when it holds something.
+    """
+    fields = config_to_dict(calib)
+    data = {"format_version": SESSION_FORMAT_VERSION, "device": fields.pop("device"), **fields}
+    if not data["extra"]:
+        del data["extra"]
+    return HEADER + yaml.safe_dump(data, sort_keys=False, default_flow_style=None)

@@ -7,17 +7,112 @@ only when asked (:meth:`SessionSource.frame`).
 Frames of reference are named in variable names: ``T_CfromI`` maps points in the IMU frame to
 the camera frame (``p_C = R_CfromI @ p_I + t_CfromI``). The camera frame is OpenCV's (x right,
 y down, z forward).
+
+The calibration types (:class:`CameraIntrinsics`, :class:`ImuNoise`, :class:`AprilTagBoard`,
+:class:`SessionCalibration`) are also the schema of ``session.yaml``: the file is parsed into
+them with :func:`gaitnet.config.parse_config` and written from them with
+:func:`gaitnet.config.config_to_dict` (:mod:`gaitnet.io.session_yaml`). Each type checks its
+values in ``__post_init__`` (ranges, finiteness, rigid transforms) and raises ``ValueError``;
+every reader turns that into a :class:`~gaitnet.errors.SessionError` naming its file and key,
+so one set of checks guards session folders, bags and the simulator alike. Fields are
+normalised to plain Python numbers and float64 arrays, so a calibration built from numpy
+values serialises to the same text as one built from literals.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import math
+import numbers
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
 SESSION_FORMAT_VERSION = 1
+T_NS_MAX = 2**63 - 1
+"""Largest timestamp [ns] a session can hold (int64); timestamps are never negative."""
+RIGID_TOLERANCE = 1e-5
+"""Largest deviation of ``R Rᵀ`` from the identity accepted in a rigid transform."""
+
+
+def _set(obj: Any, name: str, value: Any) -> None:
+    object.__setattr__(obj, name, value)
+
+
+def _int(value: Any, name: str, minimum: int | None = None) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise ValueError(f"{name} must be an integer, got {value!r}")
+    value = int(value)
+    if minimum is not None and value < minimum:
+        raise ValueError(f"{name} must be at least {minimum}, got {value}")
+    return value
+
+
+def _float(value: Any, name: str, positive: bool = False, non_negative: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    number = float(value)
+    if not math.isfinite(number):
+        raise ValueError(f"{name} must be finite, got {number}")
+    if positive and number <= 0:
+        raise ValueError(f"{name} must be positive, got {number}")
+    if non_negative and number < 0:
+        raise ValueError(f"{name} must not be negative, got {number}")
+    return number
+
+
+def rigid_transform(T: Any, name: str) -> np.ndarray:
+    """``T`` as a float64 4×4 array; ``ValueError`` unless finite, rigid and proper.
+
+    Rigid: bottom row ``[0, 0, 0, 1]``, ``R Rᵀ = I`` within :data:`RIGID_TOLERANCE` and
+    ``det R > 0`` (no reflection).
+    """
+    try:
+        M = np.array(T, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name} must be a 4×4 matrix of numbers") from None
+    if M.shape != (4, 4):
+        raise ValueError(f"{name} must be a 4×4 matrix, got shape {M.shape}")
+    if not np.isfinite(M).all():
+        raise ValueError(f"{name} must be finite (has NaN or infinity)")
+    R = M[:3, :3]
+    if (
+        not np.allclose(M[3], [0.0, 0.0, 0.0, 1.0], atol=RIGID_TOLERANCE)
+        or not np.allclose(R @ R.T, np.eye(3), atol=RIGID_TOLERANCE)
+        or np.linalg.det(R) <= 0
+    ):
+        raise ValueError(f"{name} is not a rigid transform (rotation and translation)")
+    M[3] = [0.0, 0.0, 0.0, 1.0]
+    return M
+
+
+def plain_data(value: Any, name: str = "extra") -> Any:
+    """A copy of ``value`` made of YAML-safe plain data: dict (str keys), list, str, bool, int,
+    finite float, None. Tuples become lists, numpy scalars Python numbers; anything else (or a
+    non-finite float) is a ``ValueError`` naming the key."""
+    if value is None or isinstance(value, (str, bool)):
+        return value
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if isinstance(value, numbers.Real):
+        return _float(value, name)
+    if isinstance(value, Mapping):
+        out = {}
+        for key, item in value.items():
+            if not isinstance(key, str):
+                raise ValueError(f"{name} keys must be strings, got {key!r}")
+            out[key] = plain_data(item, f"{name}.{key}")
+        return out
+    if isinstance(value, (list, tuple)):
+        return [plain_data(item, f"{name}[{i}]") for i, item in enumerate(value)]
+    if isinstance(value, np.ndarray):
+        return plain_data(value.tolist(), name)
+    raise ValueError(
+        f"{name} must be plain data (numbers, strings, lists, mappings), got {type(value).__name__}"
+    )
 
 
 @dataclass(frozen=True)
@@ -27,6 +122,9 @@ class CameraIntrinsics:
     ``distortion`` holds OpenCV-ordered coefficients ``(k1, k2, p1, p2, k3)``; the D455's
     colour stream reports an (inverse) Brown-Conrady model whose coefficients are near zero and
     the pipeline treats images as undistorted pinhole images.
+
+    Checked: ``width``, ``height`` positive integers; ``fx``, ``fy`` positive and finite;
+    ``cx``, ``cy`` and at most 14 distortion coefficients finite.
     """
 
     width: int
@@ -36,6 +134,23 @@ class CameraIntrinsics:
     cx: float
     cy: float
     distortion: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        _set(self, "width", _int(self.width, "width", minimum=1))
+        _set(self, "height", _int(self.height, "height", minimum=1))
+        for name in ("fx", "fy"):
+            _set(self, name, _float(getattr(self, name), name, positive=True))
+        for name in ("cx", "cy"):
+            _set(self, name, _float(getattr(self, name), name))
+        if isinstance(self.distortion, (str, bytes)) or not hasattr(self.distortion, "__len__"):
+            raise ValueError(f"distortion must be a list of numbers, got {self.distortion!r}")
+        if len(self.distortion) > 14:
+            raise ValueError(f"distortion has {len(self.distortion)} coefficients (at most 14)")
+        _set(
+            self,
+            "distortion",
+            tuple(_float(d, f"distortion[{i}]") for i, d in enumerate(self.distortion)),
+        )
 
     @property
     def K(self) -> np.ndarray:
@@ -61,7 +176,7 @@ class ImuNoise:
 
     ``gyro_noise_density`` [rad/s/√Hz], ``accel_noise_density`` [m/s²/√Hz],
     ``gyro_bias_random_walk`` [rad/s²/√Hz], ``accel_bias_random_walk`` [m/s³/√Hz].
-    A discrete per-sample variance at rate f is ``density² · f``.
+    A discrete per-sample variance at rate f is ``density² · f``. Checked: finite, ≥ 0.
     """
 
     gyro_noise_density: float
@@ -69,14 +184,34 @@ class ImuNoise:
     gyro_bias_random_walk: float
     accel_bias_random_walk: float
 
+    def __post_init__(self) -> None:
+        for name in (
+            "gyro_noise_density",
+            "accel_noise_density",
+            "gyro_bias_random_walk",
+            "accel_bias_random_walk",
+        ):
+            _set(self, name, _float(getattr(self, name), name, non_negative=True))
+
 
 @dataclass(frozen=True)
 class AprilTagBoard:
     """A printed sheet of AprilTags lying on the floor at a known pose.
 
     ``T_WfromBoard`` (4×4) places the board frame in the world; tag ``first_id + r * cols + c``
-    has its centre at ``(origin + c * spacing, origin + r * spacing, 0)`` in the board frame,
-    where ``spacing = tag_size_m + gap_m``. Corners follow OpenCV's aruco order.
+    has its centre at ``(s/2 + c * spacing, s/2 + r * spacing, 0)`` in the board frame, where
+    ``s = tag_size_m`` and ``spacing = tag_size_m + gap_m``.
+
+    Corner convention (:func:`tag_corners_in_board`): the board frame has z out of the paper
+    (up when the sheet lies face up on the floor) and each tag reads correctly when seen from
+    +z with board +x to the right and board +y up; corners are in OpenCV's aruco order
+    (top-left, top-right, bottom-right, bottom-left of the marker as read), i.e. the classic
+    ArUco marker frame ``(-s/2, +s/2), (+s/2, +s/2), (+s/2, -s/2), (-s/2, -s/2)`` shifted to
+    the tag centre. A sheet lying face up on the floor therefore has ``T_WfromBoard`` = a
+    rotation about world z and z = 0.
+
+    Checked: ``rows``, ``cols`` ≥ 1; ``tag_size_m`` positive and finite; ``gap_m`` finite,
+    ≥ 0; ``first_id`` ≥ 0; ``T_WfromBoard`` a finite rigid transform.
     """
 
     name: str
@@ -87,6 +222,22 @@ class AprilTagBoard:
     gap_m: float
     first_id: int
     T_WfromBoard: np.ndarray
+
+    def __post_init__(self) -> None:
+        for name in ("name", "family"):
+            if not isinstance(getattr(self, name), str) or not getattr(self, name):
+                raise ValueError(f"{name} must be a non-empty string, got {getattr(self, name)!r}")
+        _set(self, "rows", _int(self.rows, "rows", minimum=1))
+        _set(self, "cols", _int(self.cols, "cols", minimum=1))
+        _set(self, "tag_size_m", _float(self.tag_size_m, "tag_size_m", positive=True))
+        _set(self, "gap_m", _float(self.gap_m, "gap_m", non_negative=True))
+        _set(self, "first_id", _int(self.first_id, "first_id", minimum=0))
+        _set(self, "T_WfromBoard", rigid_transform(self.T_WfromBoard, "T_WfromBoard"))
+
+    @property
+    def tag_ids(self) -> range:
+        """The ids of the tags on this board."""
+        return range(self.first_id, self.first_id + self.rows * self.cols)
 
     def tag_centre_in_board(self, tag_id: int) -> np.ndarray:
         """Centre of tag ``tag_id`` in the board frame (z = 0)."""
@@ -99,9 +250,24 @@ class AprilTagBoard:
         return np.array([half + c * spacing, half + r * spacing, 0.0])
 
 
+def tag_corners_in_board(board: AprilTagBoard, tag_id: int) -> np.ndarray:
+    """(4, 3) corners of tag ``tag_id`` in the board frame, OpenCV aruco order.
+
+    See :class:`AprilTagBoard` for the convention. ``KeyError`` if the tag is not on the board.
+    """
+    c = board.tag_centre_in_board(tag_id)
+    h = board.tag_size_m / 2.0
+    return c + np.array([[-h, h, 0.0], [h, h, 0.0], [h, -h, 0.0], [-h, -h, 0.0]])
+
+
 @dataclass(frozen=True)
 class SessionCalibration:
-    """Everything ``session.yaml`` states about the sensors of one recording."""
+    """Everything ``session.yaml`` states about the sensors of one recording.
+
+    Checked: ``color`` and ``depth`` are :class:`CameraIntrinsics`; ``depth_scale_m`` positive
+    and finite; ``T_CfromI`` a finite rigid transform; boards have distinct names and disjoint
+    tag ids; ``extra`` is YAML-safe plain data with finite numbers.
+    """
 
     color: CameraIntrinsics
     depth: CameraIntrinsics
@@ -112,6 +278,33 @@ class SessionCalibration:
     apriltag_boards: tuple[AprilTagBoard, ...] = ()
     device: str = "unknown"
     extra: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for name in ("color", "depth"):
+            if not isinstance(getattr(self, name), CameraIntrinsics):
+                raise ValueError(f"{name} must be CameraIntrinsics, got {getattr(self, name)!r}")
+        _set(self, "depth_scale_m", _float(self.depth_scale_m, "depth_scale_m", positive=True))
+        if not isinstance(self.depth_aligned_to_color, (bool, np.bool_)):
+            raise ValueError("depth_aligned_to_color must be true or false")
+        _set(self, "depth_aligned_to_color", bool(self.depth_aligned_to_color))
+        _set(self, "T_CfromI", rigid_transform(self.T_CfromI, "T_CfromI"))
+        if self.imu_noise is not None and not isinstance(self.imu_noise, ImuNoise):
+            raise ValueError(f"imu_noise must be ImuNoise or None, got {self.imu_noise!r}")
+        boards = tuple(self.apriltag_boards)
+        if not all(isinstance(b, AprilTagBoard) for b in boards):
+            raise ValueError("apriltag_boards must be AprilTagBoard entries")
+        for i, a in enumerate(boards):
+            for b in boards[:i]:
+                if a.name == b.name:
+                    raise ValueError(f"two AprilTag boards are named {a.name!r}")
+                if a.family == b.family and set(a.tag_ids) & set(b.tag_ids):
+                    raise ValueError(f"AprilTag boards {b.name!r} and {a.name!r} share tag ids")
+        _set(self, "apriltag_boards", boards)
+        if not isinstance(self.device, str):
+            raise ValueError(f"device must be a string, got {self.device!r}")
+        if not isinstance(self.extra, Mapping):
+            raise ValueError(f"extra must be a mapping, got {self.extra!r}")
+        _set(self, "extra", plain_data(self.extra))
 
 
 @dataclass(frozen=True)

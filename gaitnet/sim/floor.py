@@ -35,7 +35,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from gaitnet.io.types import AprilTagBoard
+from gaitnet.io.types import AprilTagBoard, tag_corners_in_board  # noqa: F401 (re-export)
 from gaitnet.sim.render_color import encode_srgb8, srgb_to_linear
 
 FloorFamily = Literal["tiles", "wood", "carpet", "concrete", "textureless"]
@@ -452,13 +452,6 @@ def sample_mipmapped(
 
 
 # ----------------------------------------------------------------------------- tag sheets
-
-
-def tag_corners_in_board(board: AprilTagBoard, tag_id: int) -> np.ndarray:
-    """(4, 3) corners of tag ``tag_id`` in the board frame, OpenCV aruco order (module doc)."""
-    c = board.tag_centre_in_board(tag_id)
-    h = board.tag_size_m / 2.0
-    return c + np.array([[-h, h, 0.0], [h, h, 0.0], [h, -h, 0.0], [-h, -h, 0.0]])
 
 
 def _sheet_extent(board: AprilTagBoard, margin_m: float = 0.01) -> Extent:
