@@ -1,15 +1,32 @@
 """The ``gaitnet`` command: a thin layer over library functions.
 
 Each subcommand parses its arguments, calls one library function and prints a short report.
-Known errors (:class:`gaitnet.errors.GaitnetError`) become one line on stderr and exit code 1.
+
+Exit codes (docs/cli.md):
+
+* 0: success;
+* 1: the input is wrong: a bad option or argument (argparse's own errors included), a
+  :class:`gaitnet.errors.GaitnetError` from the library, or an ``OSError`` on a path the user
+  named (not found, permission denied, a folder where a file was expected, disk full). Exactly
+  one line on stderr: ``gaitnet COMMAND: error: ...``;
+* 2: a bug in gaitnet (any other exception): the traceback, then one line asking for a report;
+* 130 / 143: interrupted by Ctrl-C (SIGINT) / SIGTERM. Both raise ``KeyboardInterrupt`` inside
+  the command, so staging folders and temporary files are removed on the way out.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
+import math
+import signal
 import sys
-from collections.abc import Callable, Sequence
+import traceback
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from types import FrameType
+from typing import NoReturn
 
 import numpy as np
 from tqdm import tqdm
@@ -18,6 +35,90 @@ from gaitnet import __version__
 from gaitnet.errors import GaitnetError
 
 log = logging.getLogger("gaitnet")
+
+PROG = "gaitnet"
+SEED_LIMIT = 2**32  # numpy's SeedSequence accepts any non-negative int; we promise 32 bits
+PITCH_RANGE_DEG = (10.0, 89.0)  # the simulator's mount.pitch_deg range (gaitnet/sim/rig.py)
+EXIT_USER_ERROR = 1
+EXIT_BUG = 2
+EXIT_SIGINT = 130  # 128 + SIGINT, the shell's convention
+EXIT_SIGTERM = 143  # 128 + SIGTERM
+
+
+class UsageError(GaitnetError):
+    """A bad command line; ``prog`` is the (sub)command whose parser found it."""
+
+    def __init__(self, prog: str, message: str) -> None:
+        super().__init__(message)
+        self.prog = prog
+
+
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors raise :class:`UsageError` instead of exiting with 2.
+
+    ``add_subparsers`` builds its subparsers with the parent's class, so subcommands inherit
+    this behaviour.
+    """
+
+    def error(self, message: str) -> NoReturn:
+        raise UsageError(self.prog, f"{message} (see '{self.prog} --help')")
+
+
+# --- option value types: every value is validated where it enters --------------------------
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if not 0 <= value < SEED_LIMIT:
+        raise argparse.ArgumentTypeError(f"must be within 0 ≤ seed < 2**32, got {value}")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def _pitch_deg(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of degrees, got {text!r}") from None
+    lo, hi = PITCH_RANGE_DEG
+    if not math.isfinite(value) or not lo <= value <= hi:
+        raise argparse.ArgumentTypeError(f"must be within {lo:g}–{hi:g}°, got {text}")
+    return value
+
+
+def _output_folder(text: str) -> Path:
+    if not text:
+        raise argparse.ArgumentTypeError("empty path")
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text}: exists and is not a folder")
+    return path
+
+
+def _output_file(text: str) -> Path:
+    if not text:
+        raise argparse.ArgumentTypeError("empty path")
+    path = Path(text)
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text}: is a folder (give a file name)")
+    if not path.parent.is_dir():
+        raise argparse.ArgumentTypeError(f"{text}: folder {path.parent} does not exist")
+    return path
+
+
+# --- commands -----------------------------------------------------------------------------
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
@@ -34,7 +135,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
     imu = session.imu
     duration = times[-1] - times[0] if len(times) > 1 else 0.0
     rate = (len(times) - 1) / duration if duration > 0 else float("nan")
-    imu_rate = (len(imu) - 1) / ((imu.t_ns[-1] - imu.t_ns[0]) * 1e-9)
+    imu_span = (imu.t_ns[-1] - imu.t_ns[0]) * 1e-9 if len(imu) > 1 else 0.0
+    imu_rate = (len(imu) - 1) / imu_span if imu_span > 0 else float("nan")
     print(f"session   {args.session}")
     print(f"device    {calib.device}")
     print(
@@ -44,7 +146,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
     print(f"imu       {len(imu)} samples ({imu_rate:.1f} Hz)")
     print(f"boards    {len(calib.apriltag_boards)} AprilTag board(s)")
     if args.decode:
-        print(f"depth     {100 * n_invalid / len(session):.1f} % invalid pixels on average")
+        print(f"depth     {100 * n_invalid / max(len(session), 1):.1f} % invalid pixels on average")
         print("ok: every frame decoded")
     else:
         print("ok: headers checked (add --decode to decode every frame)")
@@ -99,6 +201,11 @@ def _cmd_simulate_dataset(args: argparse.Namespace) -> int:
     from gaitnet.sim.config import SimConfig
     from gaitnet.sim.dataset import simulate_dataset
 
+    if args.pitch_min > args.pitch_max:
+        raise UsageError(
+            f"{PROG} simulate-dataset",
+            f"--pitch-min {args.pitch_min:g} is larger than --pitch-max {args.pitch_max:g}",
+        )
     cfg = load_config(SimConfig, args.config, args.overrides)
     result = simulate_dataset(
         cfg,
@@ -128,10 +235,13 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="gaitnet",
+    """The argument parser of every command (``gaitnet --help``)."""
+    parser = Parser(
+        prog=PROG,
         description="Gait measurements and lower-body pose from one waist-worn RGB-D camera "
         "with its IMU (Intel RealSense D455).",
+        epilog="Exit status: 0 success, 1 bad input (one line on stderr), 2 a bug in gaitnet "
+        "(traceback), 130/143 interrupted. See docs/cli.md.",
     )
     parser.add_argument("--version", action="version", version=f"gaitnet {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
@@ -154,7 +264,9 @@ def build_parser() -> argparse.ArgumentParser:
         "v1 (docs/session-format.md). IMU streams are merged onto common timestamps.",
     )
     p.add_argument("input", help="RealSense .bag file or session folder")
-    p.add_argument("output", help="output session folder (must not exist or be empty)")
+    p.add_argument(
+        "output", type=_output_folder, help="output session folder (must not exist or be empty)"
+    )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.set_defaults(func=_cmd_convert)
 
@@ -165,8 +277,8 @@ def build_parser() -> argparse.ArgumentParser:
         "and config give byte-identical output.",
     )
     p.add_argument("--config", default=None, help="YAML config (default: built-in defaults)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--out", required=True, help="output session folder")
+    p.add_argument("--seed", type=_seed, default=0, help="random seed, 0 ≤ N < 2**32 (default 0)")
+    p.add_argument("--out", type=_output_folder, required=True, help="output session folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides")
     p.set_defaults(func=_cmd_simulate)
@@ -178,12 +290,23 @@ def build_parser() -> argparse.ArgumentParser:
         "Layout: see gaitnet/sim/dataset.py and docs/simulator.md.",
     )
     p.add_argument("--config", default=None, help="YAML simulator config (default: built-in)")
-    p.add_argument("--n", type=int, required=True, help="number of frames")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--n", type=_positive_int, required=True, help="number of frames (≥ 1)")
+    p.add_argument("--seed", type=_seed, default=0, help="random seed, 0 ≤ N < 2**32 (default 0)")
+    p.add_argument("--out", type=_output_folder, required=True, help="output folder")
     p.add_argument("--labelme", action="store_true", help="also write labelme JSON polygons")
-    p.add_argument("--pitch-min", type=float, default=55.0, help="camera pitch range [deg]")
-    p.add_argument("--pitch-max", type=float, default=75.0, help="camera pitch range [deg]")
+    lo, hi = PITCH_RANGE_DEG
+    p.add_argument(
+        "--pitch-min",
+        type=_pitch_deg,
+        default=55.0,
+        help=f"smallest camera pitch [deg], {lo:g}–{hi:g} (default 55)",
+    )
+    p.add_argument(
+        "--pitch-max",
+        type=_pitch_deg,
+        default=75.0,
+        help=f"largest camera pitch [deg], {lo:g}–{hi:g} (default 75)",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides")
     p.set_defaults(func=_cmd_simulate_dataset)
@@ -196,28 +319,90 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("result_dir", help="folder with results (joints.npz, camera_frames.tum)")
     p.add_argument("--session", required=True, help="simulated session folder (groundtruth/)")
-    p.add_argument("--json", default=None, help="write the metrics to this JSON file")
+    p.add_argument(
+        "--json", type=_output_file, default=None, help="write the metrics to this JSON file"
+    )
     p.set_defaults(func=_cmd_evaluate)
 
     return parser
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    logging.basicConfig(
-        level=logging.DEBUG if args.verbose else logging.INFO,
-        format="%(levelname)s %(name)s: %(message)s",
-    )
-    func: Callable[[argparse.Namespace], int] = args.func
+def _one_line(text: str) -> str:
+    """One printable line: whitespace runs collapsed, undecodable bytes shown as ``\\xNN``."""
+    text = " ".join(text.split()) or "(no message)"
+    return text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+
+
+def _describe_os_error(exc: OSError) -> str:
+    """``PATH: reason`` for an OSError on a user's path (no errno numbers, one line)."""
+    reason = exc.strerror or str(exc)
+    names = [str(n) for n in (exc.filename, exc.filename2) if n is not None]
+    return f"{' -> '.join(names)}: {reason}" if names else reason
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, delivered as a KeyboardInterrupt so every cleanup path runs."""
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    def handler(signum: int, frame: FrameType | None) -> None:
+        raise _Terminated()
+
     try:
-        return func(args)
-    except GaitnetError as exc:
-        print(f"gaitnet {args.command}: error: {exc}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print("gaitnet: interrupted", file=sys.stderr)
-        return 130
+        previous = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread (e.g. embedded): leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``gaitnet`` with ``argv`` (default: ``sys.argv[1:]``); returns the exit status."""
+    name = PROG
+    with _sigterm_as_interrupt():
+        try:
+            try:
+                args, unknown = build_parser().parse_known_args(argv)
+            except SystemExit as exc:  # --help / --version
+                return exc.code if isinstance(exc.code, int) else 0
+            name = f"{PROG} {args.command}"
+            if unknown:
+                raise UsageError(
+                    name, f"unrecognized arguments: {' '.join(unknown)} (see '{name} --help')"
+                )
+            logging.basicConfig(
+                level=logging.DEBUG if args.verbose else logging.INFO,
+                format="%(levelname)s %(name)s: %(message)s",
+            )
+            func: Callable[[argparse.Namespace], int] = args.func
+            return func(args)
+        except UsageError as exc:
+            print(f"{exc.prog}: error: {_one_line(str(exc))}", file=sys.stderr)
+            return EXIT_USER_ERROR
+        except GaitnetError as exc:
+            print(f"{name}: error: {_one_line(str(exc))}", file=sys.stderr)
+            return EXIT_USER_ERROR
+        except OSError as exc:
+            print(f"{name}: error: {_one_line(_describe_os_error(exc))}", file=sys.stderr)
+            return EXIT_USER_ERROR
+        except _Terminated:
+            print(f"{name}: terminated", file=sys.stderr)
+            return EXIT_SIGTERM
+        except KeyboardInterrupt:
+            print(f"{name}: interrupted", file=sys.stderr)
+            return EXIT_SIGINT
+        except Exception:
+            traceback.print_exc()
+            print(
+                f"{name}: internal error: this is a bug in gaitnet {__version__}; please report "
+                "it with the command line and the traceback above",
+                file=sys.stderr,
+            )
+            return EXIT_BUG
 
 
 if __name__ == "__main__":
