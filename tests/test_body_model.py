@@ -6,7 +6,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import smplx
 import torch
 from amassfactory import (
     SMPLH_PARENTS,
@@ -15,7 +14,6 @@ from amassfactory import (
     write_model_npz,
     write_model_pkl,
 )
-from smplx.vertex_ids import vertex_ids as smplx_vertex_ids
 
 from gaitnet.motion.body_model import (
     BodyModelError,
@@ -37,6 +35,9 @@ def model_files(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, Path, P
 
 def test_forward_kinematics_matches_smplx_joints(model_files: tuple[dict, Path, Path]) -> None:
     model, npz, pkl = model_files
+    # smplx is an optional test dependency: only this comparison needs it.
+    smplx = pytest.importorskip("smplx")
+    smplx_vertex_ids = pytest.importorskip("smplx.vertex_ids").vertex_ids
     # Small vertex ids: the test mesh has 300 vertices, smplx's defaults index up to 6889.
     small_ids = {k: i for i, k in enumerate(smplx_vertex_ids["smplh"])}
     body = smplx.SMPL(model_path=str(pkl), vertex_ids=small_ids, dtype=torch.float64)

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gaitnet.errors import SessionError
+from gaitnet.errors import InputError, SessionError
 from gaitnet.evaluation.evaluate import evaluate_result
 from gaitnet.evaluation.metrics import ate_yaw_aligned, match_times, mpjpe
 from gaitnet.io.trajectory import read_tum, write_tum
@@ -78,12 +78,12 @@ def test_evaluate_job_on_simulated_truth(tmp_path: Path, tiny_sim_session: Path)
 
 def test_evaluate_errors(tmp_path: Path, tiny_sim_session: Path) -> None:
     (tmp_path / "empty").mkdir()
-    with pytest.raises(SessionError, match="nothing to evaluate"):
+    with pytest.raises(InputError, match="nothing to evaluate"):
         evaluate_result(tmp_path / "empty", tiny_sim_session)
     bad = tmp_path / "bad"
     bad.mkdir()
     np.savez(bad / "joints.npz", t_ns=np.arange(3), positions=np.full((3, 9, 3), np.nan))
-    with pytest.raises(SessionError, match="non-finite joint positions"):
+    with pytest.raises(InputError, match="non-finite joint positions"):
         evaluate_result(bad, tiny_sim_session)
     no_gt = tmp_path / "no_gt"
     shutil.copytree(tiny_sim_session, no_gt, ignore=shutil.ignore_patterns("groundtruth"))

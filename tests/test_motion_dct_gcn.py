@@ -9,15 +9,17 @@ import pytest
 import scipy.fft
 import torch
 
+from gaitnet.evaluation.metrics import mean_angle_error, mpjpe
 from gaitnet.motion.dct import dct_matrix, dct_matrix_torch, idct_matrix, idct_matrix_torch
 from gaitnet.motion.gcn import (
     DCTGCN,
     GraphConvolution,
     PredictorConfig,
+    joint_positions,
     pose_features,
     split_pose_features,
 )
-from gaitnet.motion.losses import joint_positions, mean_angle_error, motion_loss, mpjpe
+from gaitnet.motion.losses import motion_loss
 from gaitnet.motion.onnx_runtime import (
     OnnxInputError,
     OnnxParityError,
@@ -199,6 +201,7 @@ def test_joint_positions_match_numpy_forward_kinematics() -> None:
     expected = forward_kinematics(skel, root, np.zeros((3, 3)), aa)[:, :7]
     got = joint_positions(torch.from_numpy(f), skel).numpy()
     np.testing.assert_allclose(got, expected, atol=1e-12)
+    np.testing.assert_allclose(joint_positions(f, skel), expected, atol=1e-12)  # numpy path
 
 
 # --------------------------------------------------------------------------- ONNX

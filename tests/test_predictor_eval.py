@@ -9,6 +9,7 @@ import pytest
 import torch
 from scipy.spatial.transform import Rotation
 
+from gaitnet.errors import InputError
 from gaitnet.motion.evaluation import (
     constant_velocity,
     evaluate_predictors,
@@ -101,7 +102,7 @@ def test_report_json_has_gcn_and_both_baselines_and_reductions() -> None:
 
 def test_nan_predictions_are_refused() -> None:
     windows = _rotating_windows(2)
-    with pytest.raises(ValueError, match="NaN"):
+    with pytest.raises(InputError, match="'bad' returned NaN"):
         evaluate_predictors(
             windows, {"bad": lambda p: np.full((p.shape[0], 10, 21), np.nan)}, SKEL,
             n_past=N_PAST, fps=FPS, baselines=False,

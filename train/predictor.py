@@ -32,6 +32,7 @@ from tqdm import tqdm
 
 from gaitnet.config import config_to_dict, load_config, save_config
 from gaitnet.errors import GaitnetError
+from gaitnet.evaluation.metrics import mean_angle_error, mpjpe_per_horizon
 from gaitnet.io.atomic import atomic_write_text
 from gaitnet.motion.evaluation import (
     Predictor,
@@ -39,8 +40,8 @@ from gaitnet.motion.evaluation import (
     onnx_predictor,
     torch_predictor,
 )
-from gaitnet.motion.gcn import DCTGCN, PredictorConfig
-from gaitnet.motion.losses import joint_positions, mean_angle_error, motion_loss
+from gaitnet.motion.gcn import DCTGCN, PredictorConfig, joint_positions
+from gaitnet.motion.losses import motion_loss
 from gaitnet.motion.prepared import load_prepared
 from gaitnet.training.checkpoint import git_hash, load_checkpoint, save_checkpoint
 from gaitnet.training.distributed import (
@@ -134,12 +135,10 @@ def evaluate(
         loss = motion_loss(out, poses, skeleton, w_mpjpe=cfg.loss.w_mpjpe, w_mae=cfg.loss.w_mae)
         b = poses.shape[0]
         pred, true = out[:, n_past:], poses[:, n_past:]
-        d = torch.linalg.vector_norm(
-            joint_positions(pred, skeleton) - joint_positions(true, skeleton), dim=-1
-        )  # (B, K, 7)
+        p_pred, p_true = joint_positions(pred, skeleton), joint_positions(true, skeleton)
         sums[0] += loss.total.double() * b
         sums[1] += b
-        sums[2 : 2 + K] += d.mean(dim=-1).sum(dim=0).double()
+        sums[2 : 2 + K] += mpjpe_per_horizon(p_pred, p_true, reduction="sum").double()
         sums[-1] += mean_angle_error(pred, true).double() * b
     totals = all_reduce_sum(sums).cpu()
     n = totals[1]

@@ -4,85 +4,159 @@ Reads whatever the result folder holds and reports the contract keys (DESIGN.md)
 inputs allow, in SI units:
 
 - ``mpjpe_m`` from ``RESULT_DIR/joints.npz`` (same layout as ``groundtruth/joints.npz``:
-  ``t_ns`` and ``positions`` (n, 9, 3) of SMPL joints [0, 1, 2, 4, 5, 7, 8, 10, 11]); the mean
-  over matched frames of the 7 lower-body joints (pelvis, hips, knees, ankles), eq. (4.5);
+  ``t_ns`` (n,) integer nanoseconds and ``positions`` (n, 9, 3) of SMPL joints
+  [0, 1, 2, 4, 5, 7, 8, 10, 11]); the mean over matched frames of the 7 lower-body joints
+  (pelvis, hips, knees, ankles), eq. (4.5), :func:`gaitnet.evaluation.metrics.mpjpe`;
 - ``body_ate_m`` from ``RESULT_DIR/camera_frames.tum``: RMS camera-position error after a
   yaw + translation alignment to ``groundtruth/camera_frames.tum``.
 
 More keys (strides, foot trajectories, segmentation) join as the stages producing them land.
+
+Every input is checked where it is read: a result folder that is missing or a file, a
+``joints.npz`` that is not a readable archive of the right keys, dtypes and shapes, NaN or inf
+anywhere, timestamps that match no ground-truth frame, or a session without the ground truth
+that a result file needs, raise :class:`~gaitnet.errors.InputError` (the result) or
+:class:`~gaitnet.errors.SessionError` (the session) with one line naming the file. A metric
+that is not finite is never reported.
 """
 
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from gaitnet.errors import SessionError
+from gaitnet.errors import GaitnetError, InputError, SessionError
 from gaitnet.evaluation.metrics import ate_yaw_aligned, match_times, mpjpe
 from gaitnet.io.atomic import atomic_write_text
 from gaitnet.io.trajectory import read_tum
+from gaitnet.motion.amass import NPZ_READ_ERRORS
 
+__all__ = ["JOINTS_FILE", "TRAJECTORY_FILE", "ResultEvaluation", "evaluate_result", "write_report"]
+
+JOINTS_FILE = "joints.npz"
+TRAJECTORY_FILE = "camera_frames.tum"
 LOWER_BODY = slice(0, 7)  # rows of the 9-joint arrays that are the 7-joint lower body
+_N_JOINTS = 9
 
 
 @dataclass(frozen=True)
-class EvaluationReport:
+class ResultEvaluation:
+    """Metrics of one result folder against a session's ground truth (finite SI values) and
+    how many frames/poses each was computed from; :meth:`to_json` is the contract JSON."""
+
     metrics: dict[str, float] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=dict)
 
     def to_json(self) -> str:
+        """One JSON object: the metric keys plus ``counts``."""
         return json.dumps({**self.metrics, "counts": self.counts}, indent=2, sort_keys=True)
 
 
-def _load_joints(path: Path) -> tuple[np.ndarray, np.ndarray]:
+def _load_joints(path: Path, error: type[GaitnetError]) -> tuple[np.ndarray, np.ndarray]:
+    """``t_ns`` (n,) int64 and ``positions`` (n, 9, 3) float64 of a joints file, checked."""
+    if not path.is_file():
+        raise error(f"{path}: joints file not found")
     try:
-        with np.load(path, allow_pickle=False) as data:
+        data = np.load(path, allow_pickle=False)
+    except NPZ_READ_ERRORS as exc:
+        raise error(f"{path}: not a readable joints .npz ({exc})") from exc
+    if not isinstance(data, np.lib.npyio.NpzFile):
+        raise error(f"{path}: expected an .npz archive with 't_ns' and 'positions'")
+    with data:
+        missing = [k for k in ("t_ns", "positions") if k not in data.files]
+        if missing:
+            raise error(f"{path}: missing key(s) {missing}")
+        try:
             t_ns, positions = data["t_ns"], data["positions"]
-    except KeyError as exc:
-        raise SessionError(f"{path}: missing key {exc}") from exc
-    except (OSError, ValueError) as exc:
-        raise SessionError(f"{path}: not a readable joints file ({exc})") from exc
-    if positions.ndim != 3 or positions.shape[1:] != (9, 3) or len(t_ns) != len(positions):
-        raise SessionError(f"{path}: 'positions' must be (n, 9, 3) with one t_ns per frame")
+        except NPZ_READ_ERRORS as exc:
+            raise error(f"{path}: keys 't_ns'/'positions' are not readable arrays ({exc})") from exc
+    if t_ns.dtype.kind not in "iu" or t_ns.ndim != 1:
+        raise error(f"{path}: 't_ns' must be a 1-D integer array, got {t_ns.dtype} {t_ns.shape}")
+    if t_ns.dtype.kind == "u" and t_ns.size and int(t_ns.max()) > np.iinfo(np.int64).max:
+        raise error(f"{path}: 't_ns' holds values too large for nanosecond timestamps")
+    if positions.dtype.kind not in "iuf":
+        raise error(f"{path}: 'positions' must hold numbers, got {positions.dtype}")
+    if positions.ndim != 3 or positions.shape[1:] != (_N_JOINTS, 3):
+        raise error(f"{path}: 'positions' must be (n, {_N_JOINTS}, 3), got {positions.shape}")
+    if len(t_ns) != len(positions):
+        raise error(f"{path}: {len(t_ns)} 't_ns' for {len(positions)} frames of 'positions'")
+    if len(t_ns) == 0:
+        raise error(f"{path}: no frames")
+    positions = positions.astype(np.float64)
     if not np.all(np.isfinite(positions)):
-        raise SessionError(f"{path}: non-finite joint positions")
+        raise error(f"{path}: non-finite joint positions")
     return t_ns.astype(np.int64), positions
 
 
-def evaluate_result(result_dir: str | Path, session_dir: str | Path) -> EvaluationReport:
+def _load_trajectory(path: Path, error: type[GaitnetError]) -> tuple[np.ndarray, np.ndarray]:
+    """Times [s] and positions (n, 3) of a TUM file, every value finite."""
+    if not path.is_file():
+        raise error(f"{path}: trajectory file not found")
+    try:
+        t, T = read_tum(path)
+    except SessionError as exc:  # read_tum names the file; say which side it is on
+        raise error(str(exc)) from exc
+    if len(t) == 0:
+        raise error(f"{path}: no poses")
+    p = T[:, :3, 3]
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(p))):
+        raise error(f"{path}: non-finite times or positions")
+    if np.max(np.abs(t)) > 9e9:  # nanoseconds must fit int64
+        raise error(f"{path}: timestamps beyond year 2255 (seconds expected)")
+    return t, p
+
+
+def _finite(path: Path, name: str, value: float) -> float:
+    if not math.isfinite(value):
+        raise InputError(f"{path}: {name} is not finite (values too large?)")
+    return value
+
+
+def evaluate_result(result_dir: str | Path, session_dir: str | Path) -> ResultEvaluation:
     """Metrics of ``result_dir`` against ``session_dir/groundtruth`` (module docstring)."""
-    result_dir, gt = Path(result_dir), Path(session_dir) / "groundtruth"
+    result_dir, session_dir = Path(result_dir), Path(session_dir)
+    gt = session_dir / "groundtruth"
+    if not result_dir.exists():
+        raise InputError(f"{result_dir}: result folder not found")
     if not result_dir.is_dir():
-        raise SessionError(f"{result_dir}: result folder not found")
+        raise InputError(f"{result_dir}: is not a folder (give the result folder)")
+    if not session_dir.is_dir():
+        raise SessionError(f"{session_dir}: session folder not found")
     if not gt.is_dir():
         raise SessionError(f"{gt}: no ground truth (only simulated sessions have it)")
     metrics: dict[str, float] = {}
     counts: dict[str, int] = {}
-    if (result_dir / "joints.npz").is_file():
-        t_est, p_est = _load_joints(result_dir / "joints.npz")
-        t_ref, p_ref = _load_joints(gt / "joints.npz")
+    joints = result_dir / JOINTS_FILE
+    if joints.exists():
+        t_est, p_est = _load_joints(joints, InputError)
+        t_ref, p_ref = _load_joints(gt / JOINTS_FILE, SessionError)
         i, j = match_times(t_est, t_ref)
         if len(i) == 0:
-            raise SessionError(f"{result_dir / 'joints.npz'}: no frame matches the ground truth")
-        metrics["mpjpe_m"] = mpjpe(p_est[i, LOWER_BODY], p_ref[j, LOWER_BODY])
+            raise InputError(f"{joints}: no frame matches the ground truth's times")
+        value = mpjpe(p_est[i, LOWER_BODY], p_ref[j, LOWER_BODY])
+        metrics["mpjpe_m"] = _finite(joints, "MPJPE", value)
         counts["mpjpe_frames"] = int(len(i))
-    if (result_dir / "camera_frames.tum").is_file():
-        t_est, T_est = read_tum(result_dir / "camera_frames.tum")
-        t_ref, T_ref = read_tum(gt / "camera_frames.tum")
+    trajectory = result_dir / TRAJECTORY_FILE
+    if trajectory.exists():
+        t_est, p_est = _load_trajectory(trajectory, InputError)
+        t_ref, p_ref = _load_trajectory(gt / TRAJECTORY_FILE, SessionError)
         i, j = match_times(np.round(t_est * 1e9), np.round(t_ref * 1e9))
         if len(i) < 2:
-            raise SessionError(f"{result_dir / 'camera_frames.tum'}: < 2 poses match")
-        metrics["body_ate_m"] = ate_yaw_aligned(T_est[i, :3, 3], T_ref[j, :3, 3])
+            raise InputError(f"{trajectory}: fewer than 2 poses match the ground truth's times")
+        value = ate_yaw_aligned(p_est[i], p_ref[j])
+        metrics["body_ate_m"] = _finite(trajectory, "ATE", value)
         counts["ate_poses"] = int(len(i))
     if not metrics:
-        raise SessionError(
-            f"{result_dir}: nothing to evaluate (expected joints.npz and/or camera_frames.tum)"
+        raise InputError(
+            f"{result_dir}: nothing to evaluate (expected {JOINTS_FILE} and/or {TRAJECTORY_FILE})"
         )
-    return EvaluationReport(metrics, counts)
+    return ResultEvaluation(metrics, counts)
 
 
-def write_report(report: EvaluationReport, path: str | Path) -> None:
+def write_report(report: ResultEvaluation, path: str | Path) -> None:
+    """Write :meth:`ResultEvaluation.to_json` atomically (a folder at ``path`` is an error)."""
     atomic_write_text(path, report.to_json() + "\n")

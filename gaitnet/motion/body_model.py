@@ -1,7 +1,7 @@
 """Rest joints of a subject from an SMPL / SMPL+H / SMPL-X body-model file (thesis sec. 4.2.4).
 
 The thesis computes joint positions with SMPL's joint regressor. For the lower body only the
-shape → joint path matters (ecosystem.md):
+shape → joint path matters (docs/ecosystem.md):
 
     J(β) = J_regressor (v_template + shapedirs β),
 
@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import importlib
 import pickle
-import zipfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,7 +34,8 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
-from gaitnet.errors import GaitnetError
+from gaitnet.errors import InputError
+from gaitnet.motion.amass import NPZ_READ_ERRORS
 from gaitnet.motion.skeleton import (
     PARENTS,
     SMPL_JOINT_INDICES,
@@ -65,7 +65,7 @@ _CHUMPY_FIX = (
 )
 
 
-class BodyModelError(GaitnetError):
+class BodyModelError(InputError):
     """A body-model file is missing, unreadable or incomplete; the message names file and key."""
 
 
@@ -117,8 +117,10 @@ def _read_arrays(path: Path) -> dict[str, Any]:
     if path.suffix == ".npz":
         try:
             data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        except NPZ_READ_ERRORS as exc:
             raise BodyModelError(f"{path}: not a readable .npz body model ({exc})") from exc
+        if not isinstance(data, np.lib.npyio.NpzFile):
+            raise BodyModelError(f"{path}: expected an .npz archive of named arrays")
         with data:
             missing = [k for k in REQUIRED_KEYS if k not in data.files]
             if missing:
@@ -135,6 +137,8 @@ def _read_arrays(path: Path) -> dict[str, Any]:
                         f"{path}: key {k!r} is a pickled object (e.g. a scipy sparse matrix), "
                         "which is not loaded from .npz; re-save it as a dense array"
                     ) from exc
+                except NPZ_READ_ERRORS as exc:
+                    raise BodyModelError(f"{path}: key {k!r} is not readable ({exc})") from exc
             return out
     if path.suffix == ".pkl":
         try:

@@ -6,16 +6,18 @@ Protocol. Each test window holds ``n_past`` observed and ``n_future`` true futur
 (B, n_past, 21) to future poses (B, n_future, 21). For every horizon ``k = 1 .. n_future``
 (``k / fps`` s: 33 … 333 ms at 30 fps) we report
 
-* MPJPE (eq. 4.5) [m]: mean over windows and the 7 lower-body joints (pelvis, hips, knees,
-  ankles) of ``‖p̂ − p‖₂`` with joint positions from forward kinematics
-  (:func:`gaitnet.motion.skeleton.forward_kinematics`) on ONE evaluation skeleton for all
-  clips. The root TRANSLATION is not predicted, so predicted and true poses are both placed
-  with the true translation; as it is the same for both, this equals zeroing it, and it is the
-  same for every method. Consequently the pelvis joint's error is always zero (it is still
-  counted among the 7 joints, as in the thesis's loss; multiply by 7/6 for the mean over the
-  six moving joints); the root ORIENTATION error moves the hips and everything below.
-* angle MAE (eq. 4.6) [rad]: mean over windows and the 7 rotation nodes (root orientation +
-  6 joints) of the L1 norm of the axis-angle difference, as the training loss.
+* MPJPE (eq. 4.5, :func:`gaitnet.evaluation.metrics.mpjpe_per_horizon`) [m]: mean over
+  windows and the 7 lower-body joints (pelvis, hips, knees, ankles) of ``‖p̂ − p‖₂`` with joint
+  positions from forward kinematics (:func:`gaitnet.motion.gcn.joint_positions`) on ONE
+  evaluation skeleton for all clips. The root TRANSLATION is not predicted, so predicted and
+  true poses are both placed with the true translation; as it is the same for both, this
+  equals zeroing it, and it is the same for every method. Consequently the pelvis joint's
+  error is always zero (it is still counted among the 7 joints, as in the thesis's loss;
+  multiply by 7/6 for the mean over the six moving joints); the root ORIENTATION error moves
+  the hips and everything below.
+* angle MAE (eq. 4.6, :func:`gaitnet.evaluation.metrics.angle_errors`) [rad]: mean over
+  windows and the 7 rotation nodes (root orientation + 6 joints) of the L1 norm of the
+  axis-angle difference, as the training loss.
 
 Baselines (no learning):
 
@@ -39,9 +41,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from gaitnet.errors import InputError
+from gaitnet.evaluation.metrics import angle_errors, mpjpe_per_horizon, per_horizon
 from gaitnet.geometry import so3_exp, so3_log
-from gaitnet.motion.gcn import split_pose_features
-from gaitnet.motion.skeleton import N_ROTATED, LowerBodySkeleton, forward_kinematics
+from gaitnet.motion.gcn import joint_positions
+from gaitnet.motion.skeleton import LowerBodySkeleton
 
 if TYPE_CHECKING:
     import torch
@@ -49,21 +53,16 @@ if TYPE_CHECKING:
     from gaitnet.motion.onnx_runtime import OnnxPredictor
 
 __all__ = [
-    "N_EVAL_JOINTS",
-    "EvaluationReport",
     "HorizonMetrics",
     "Predictor",
+    "PredictorComparison",
     "constant_velocity",
     "evaluate_predictors",
     "horizon_errors",
-    "joint_positions_np",
     "onnx_predictor",
     "torch_predictor",
     "zero_velocity",
 ]
-
-#: Joints of the MPJPE: SMPL 0, 1, 2, 4, 5, 7, 8 (the first 7 of the skeleton).
-N_EVAL_JOINTS = 7
 
 Predictor = Callable[[np.ndarray], np.ndarray]
 
@@ -136,17 +135,6 @@ def onnx_predictor(model: OnnxPredictor, *, batch_size: int = 1024) -> Predictor
 # --------------------------------------------------------------------------- metrics
 
 
-def joint_positions_np(
-    features: np.ndarray, skeleton: LowerBodySkeleton, n_joints: int = N_EVAL_JOINTS
-) -> np.ndarray:
-    """FK of 21-node poses (..., 21) with zero translation → joints (..., n_joints, 3) [m]."""
-    root, body = split_pose_features(np.asarray(features, dtype=np.float64))
-    feet = np.zeros((*body.shape[:-2], N_ROTATED - body.shape[-2], 3))
-    joint_aa = np.concatenate([body, feet], axis=-2)
-    trans = np.zeros((*root.shape[:-1], 3))
-    return forward_kinematics(skeleton, root, trans, joint_aa)[..., :n_joints, :]
-
-
 def horizon_errors(
     pred: np.ndarray, truth: np.ndarray, skeleton: LowerBodySkeleton
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -159,12 +147,9 @@ def horizon_errors(
     truth = np.asarray(truth, dtype=np.float64)
     if pred.shape != truth.shape or pred.ndim != 3:
         raise ValueError(f"need equal (B, K, 21) arrays, got {pred.shape} and {truth.shape}")
-    d = np.linalg.norm(
-        joint_positions_np(pred, skeleton) - joint_positions_np(truth, skeleton), axis=-1
-    )  # (B, K, 7)
-    mpjpe = d.mean(axis=-1).sum(axis=0)
-    diff = (pred - truth).reshape(*pred.shape[:-1], -1, 3)
-    mae = np.abs(diff).sum(axis=-1).mean(axis=-1).sum(axis=0)
+    p_pred, p_true = joint_positions(pred, skeleton), joint_positions(truth, skeleton)
+    mpjpe = mpjpe_per_horizon(p_pred, p_true, reduction="sum")
+    mae = per_horizon(angle_errors(pred, truth), reduction="sum")
     return mpjpe, mae
 
 
@@ -194,8 +179,11 @@ class HorizonMetrics:
 
 
 @dataclass(frozen=True)
-class EvaluationReport:
-    """All methods on one split; ``horizons_ms[k − 1] = 1000 k / fps``."""
+class PredictorComparison:
+    """Per-horizon errors of every method (learnt predictors and baselines) on one split.
+
+    ``horizons_ms[k − 1] = 1000 k / fps``; :meth:`to_dict` is what ``eval.json`` holds.
+    """
 
     split: str
     fps: float
@@ -248,16 +236,19 @@ def evaluate_predictors(
     split: str = "test",
     batch_size: int = 2048,
     baselines: bool = True,
-) -> EvaluationReport:
+) -> PredictorComparison:
     """Errors per horizon of each predictor (and both baselines) on ``windows`` (N, W, 21).
 
     ``W = n_past + n_future``. With ``baselines`` the report also holds ``zero_velocity`` and
-    ``constant_velocity``. Any non-finite prediction raises ``ValueError`` (a NaN must never
+    ``constant_velocity``. Windows must be finite; a prediction of the wrong shape or with a
+    NaN/inf raises :class:`~gaitnet.errors.InputError` naming the predictor (a NaN must never
     reach a report).
     """
     windows = np.asarray(windows, dtype=np.float64)
     if windows.ndim != 3 or windows.shape[1] <= n_past or windows.shape[0] == 0:
-        raise ValueError(f"need (N > 0, n_past + n_future, 21) windows, got {windows.shape}")
+        raise InputError(f"need (N > 0, n_past + n_future, 21) windows, got {windows.shape}")
+    if not np.all(np.isfinite(windows)):
+        raise InputError("evaluation windows contain NaN or inf")
     n_future = windows.shape[1] - n_past
     methods: dict[str, Predictor] = dict(predictors)
     if baselines:
@@ -272,11 +263,11 @@ def evaluate_predictors(
             batch = windows[i : i + batch_size]
             pred = np.asarray(predict(batch[:, :n_past]), dtype=np.float64)
             if pred.shape != batch[:, n_past:].shape:
-                raise ValueError(
+                raise InputError(
                     f"predictor {name!r} returned {pred.shape}, expected {batch[:, n_past:].shape}"
                 )
             if not np.all(np.isfinite(pred)):
-                raise ValueError(f"predictor {name!r} returned NaN or inf")
+                raise InputError(f"predictor {name!r} returned NaN or inf")
             s_pos, s_ang = horizon_errors(pred, batch[:, n_past:], skeleton)
             mpjpe += s_pos
             mae += s_ang
@@ -289,7 +280,7 @@ def evaluate_predictors(
         "skeleton_rest_joints": repr(np.round(skeleton.rest_joints, 4).tolist()),
         "constant_velocity": "R_{T+k} = R_T (R_{T-1}^T R_T)^k per rotation node",
     }
-    return EvaluationReport(
+    return PredictorComparison(
         split=split,
         fps=float(fps),
         n_past=int(n_past),

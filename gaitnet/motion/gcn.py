@@ -42,7 +42,13 @@ import torch
 from torch import nn
 
 from gaitnet.motion.dct import dct_matrix_torch, idct_matrix_torch
-from gaitnet.motion.skeleton import JOINT_NAMES
+from gaitnet.motion.skeleton import (
+    JOINT_NAMES,
+    N_ROTATED,
+    LowerBodySkeleton,
+    forward_kinematics,
+    forward_kinematics_torch,
+)
 
 __all__ = [
     "DCTGCN",
@@ -50,11 +56,16 @@ __all__ = [
     "GraphConvolution",
     "NODE_JOINTS",
     "NODE_JOINT_NAMES",
+    "N_EVAL_JOINTS",
     "PredictorConfig",
+    "joint_positions",
     "pose_features",
     "split_pose_features",
 ]
 
+#: Joints of the MPJPE (loss and evaluation): SMPL 0, 1, 2, 4, 5, 7, 8, the first 7 of the
+#: skeleton (pelvis, hips, knees, ankles), as the thesis.
+N_EVAL_JOINTS = 7
 #: SMPL joint whose rotation nodes ``3j .. 3j+2`` hold (joint 0: the root orientation).
 NODE_JOINTS: tuple[int, ...] = (0, 1, 2, 4, 5, 7, 8)
 NODE_JOINT_NAMES: tuple[str, ...] = JOINT_NAMES[: len(NODE_JOINTS)]
@@ -251,3 +262,32 @@ def split_pose_features(
     root = features[..., :3]
     joints = features[..., 3:].reshape(*features.shape[:-1], len(NODE_JOINTS) - 1, 3)
     return root, joints
+
+
+def joint_positions(
+    features: np.ndarray | torch.Tensor,
+    skeleton: LowerBodySkeleton | torch.Tensor,
+    trans: np.ndarray | torch.Tensor | None = None,
+    *,
+    n_joints: int = N_EVAL_JOINTS,
+) -> np.ndarray | torch.Tensor:
+    """Forward kinematics of 21-node pose vectors (..., 21) → joints (..., n_joints, 3) [m].
+
+    numpy in, float64 numpy out (:func:`~gaitnet.motion.skeleton.forward_kinematics`); torch
+    in, differentiable torch out (:func:`~gaitnet.motion.skeleton.forward_kinematics_torch`).
+    The foot joints' own rotations are set to zero (they move none of the 9 skeleton joints).
+    ``trans`` (..., 3) defaults to zero (the predictor does not predict the translation).
+    """
+    root, body = split_pose_features(features)
+    if isinstance(features, torch.Tensor):
+        feet = body.new_zeros(*body.shape[:-2], N_ROTATED - body.shape[-2], 3)
+        joint_aa = torch.cat([body, feet], dim=-2)
+        if trans is None:
+            trans = features.new_zeros(*features.shape[:-1], 3)
+        return forward_kinematics_torch(skeleton, root, trans, joint_aa)[..., :n_joints, :]
+    root, body = np.asarray(root, np.float64), np.asarray(body, np.float64)
+    feet = np.zeros((*body.shape[:-2], N_ROTATED - body.shape[-2], 3))
+    joint_aa = np.concatenate([body, feet], axis=-2)
+    if trans is None:
+        trans = np.zeros((*root.shape[:-1], 3))
+    return forward_kinematics(skeleton, root, trans, joint_aa)[..., :n_joints, :]
