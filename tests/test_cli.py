@@ -101,3 +101,38 @@ def test_simulate_unknown_config_key_one_line(tmp_path: Path) -> None:
     assert str(bad) in line and "unknown key 'scene.floor_famly'" in line
     line = _one_line_error(run("simulate", "--out", str(tmp_path / "o"), "camera.width=wide"))
     assert "key 'camera.width' expects int, got 'wide'" in line
+
+
+def test_sigterm_during_simulate_cleans_up(tmp_path: Path) -> None:
+    """SIGTERM while rendering: exit 143, one 'terminated' line, no output and no staging
+    folder left behind (the signal arrives as KeyboardInterrupt, so cleanup runs)."""
+    import signal
+    import time
+
+    config = Path(__file__).parents[1] / "configs" / "sim" / "default.yaml"
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "gaitnet.cli",
+            "simulate",
+            "--config",
+            str(config),
+            "--out",
+            str(tmp_path / "sim"),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 120
+    while not any(p.name.startswith(".") for p in tmp_path.iterdir()):  # staging folder
+        assert proc.poll() is None and time.monotonic() < deadline, "never started writing"
+        time.sleep(0.02)
+    time.sleep(0.3)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    assert err.strip().splitlines()[-1] == "gaitnet simulate: terminated"
+    assert "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
