@@ -6,7 +6,7 @@
    movement of a sole centre inside a foot-flat interval, and of the heel (toe) contact point
    during the heel (toe) rocker.
 2. IMU consistency: the noise-free IMU of random walks integrated (RK4, independent code in
-   tests/imu_integration.py) from the true initial state over 10 s vs the true trajectory.
+   gaitnet/sim/strapdown.py) from the true initial state over 10 s vs the true trajectory.
 3. A full default session simulated single-threaded: frames per second of the whole loop
    (render + sensor + PNG writing), the share of visible foot markers on foot labels, the
    distance of back-projected labelled pixels to the rendered shoe / leg surfaces (noise-free
@@ -23,17 +23,11 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import hashlib  # noqa: E402
-import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
-
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
-
-from imu_integration import integrate_imu  # noqa: E402
 
 from gaitnet.config import load_config  # noqa: E402
 from gaitnet.geometry import backproject  # noqa: E402
@@ -41,10 +35,13 @@ from gaitnet.io import SessionFolder  # noqa: E402
 from gaitnet.sim.config import SimConfig  # noqa: E402
 from gaitnet.sim.gait import GaitConfig, generate_walk  # noqa: E402
 from gaitnet.sim.imu import ImuConfig, simulate_imu  # noqa: E402
-from gaitnet.sim.render import render_frame  # noqa: E402
 from gaitnet.sim.render_prims import leg_sdf, shoe_sdf  # noqa: E402
-from gaitnet.sim.session import rng_streams, simulate_session  # noqa: E402
+from gaitnet.sim.scene_setup import build_scene, rng_streams  # noqa: E402
+from gaitnet.sim.session import simulate_session  # noqa: E402
+from gaitnet.sim.strapdown import integrate_imu  # noqa: E402
 from gaitnet.sim.subject import sample_subject  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
 
 cv2.setNumThreads(1)
 
@@ -111,30 +108,19 @@ def slip_and_imu(n_walks: int, seed: int) -> None:
 
 
 def surface_checks(cfg: SimConfig, seed: int, session: Path, every: int) -> None:
-    """Labelled pixels back-projected with noise-free depth lie on the rendered surfaces."""
-    from gaitnet.sim.floor import make_floor  # noqa: PLC0415
-    from gaitnet.sim.session import floor_extent, sample_appearance, sample_lighting  # noqa: PLC0415
+    """Labelled pixels back-projected with noise-free depth lie on the rendered surfaces.
 
-    rngs = rng_streams(seed)
-    subject = sample_subject(rngs["subject"], cfg.subject.height_range_m, cfg.subject.height_m)
-    walk = generate_walk(subject, cfg.gait, rngs["gait"])
-    floor = make_floor("tiles", rngs["room"], floor_extent(walk), cfg.scene.texel_m)
-    appearance = sample_appearance(subject, floor, rngs["room"], 0.0)
-    light = sample_lighting(rngs["lighting"], True)
+    The session's own world (same seed, same set-up), rendered noise-free.
+    """
+    scene = build_scene(cfg, rng_streams(seed))
     K = cfg.camera.intrinsics().K
     folder = SessionFolder(session)
-    T_PfromC = cfg.mount.T_PfromC()
     dist_foot, dist_leg, noise = [], [], []
     for k in range(0, len(folder), every):
         t = folder.frame_times_ns[k] * 1e-9
-        R, p = walk.pelvis_pose(np.array([t]))
-        T_WP = np.eye(4)
-        T_WP[:3, :3], T_WP[:3, 3] = R[0], p[0]
-        T_WC = T_WP @ T_PfromC
-        body = walk.body_state(t)
-        res = render_frame(
-            K, cfg.camera.width, cfg.camera.height, T_WC, floor, body, appearance, (), light
-        )
+        T_WC = scene.T_WfromC(np.array([t]))[0]
+        body = scene.walk.body_state(t)
+        res = scene.render(cfg.camera, t, T_WC)
         noisy = folder.frame(k).depth_m
         for value, sink in ((1, dist_foot), (2, dist_leg)):
             v, u = np.nonzero(res.label == value)

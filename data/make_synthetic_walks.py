@@ -6,7 +6,7 @@
 
 Layout: OUT/SynthWalk{Train,Val,Test}/<subject>/<clip>_walk_poses.npz and OUT/manifest.json.
 Test clips come from held-out subjects AND a held-out speed band (default 1.0–1.2 m/s);
-validation clips from held-out subjects at training speeds. See gaitnet/motion/synthetic.py.
+validation clips from held-out subjects at training speeds. See gaitnet/sim/amass_clips.py.
 """
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ import time
 
 from tqdm import tqdm
 
-from gaitnet.motion.synthetic import SyntheticWalksConfig, make_synthetic_walks
+from gaitnet.errors import GaitnetError
+from gaitnet.sim.amass_clips import SyntheticWalksConfig, make_synthetic_walks
 
 
 def _band(text: str) -> tuple[float, float]:
@@ -32,7 +33,8 @@ def main(argv: list[str] | None = None) -> int:
     d = SyntheticWalksConfig()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", required=True, help="root folder to write (AMASS-like layout)")
-    parser.add_argument("--seed", type=int, default=d.seed)
+    parser.add_argument("--seed", type=int, default=d.seed, help="random seed, 0 ≤ N < 2**32")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     parser.add_argument(
         "--n-subjects",
         type=int,
@@ -75,11 +77,16 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     t0 = time.perf_counter()
-    report = make_synthetic_walks(
-        args.out,
-        cfg,
-        progress=lambda jobs, total: tqdm(jobs, total=total, desc="subjects", unit="subject"),
-    )
+    try:
+        report = make_synthetic_walks(
+            args.out,
+            cfg,
+            overwrite=args.overwrite,
+            progress=lambda jobs, total: tqdm(jobs, total=total, desc="subjects", unit="subject"),
+        )
+    except (GaitnetError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
     print(
         f"wrote {len(report.clips)} clips under {report.root} in {time.perf_counter() - t0:.0f} s"
     )

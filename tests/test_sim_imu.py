@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
-from imu_integration import integrate_imu
 
 from gaitnet.geometry import make_T, so3_exp
 from gaitnet.sim.imu import ImuConfig, simulate_imu
 from gaitnet.sim.rig import MountConfig
+from gaitnet.sim.strapdown import integrate_imu
 
 W = 2 * np.pi * 0.9  # a walking-like fundamental [rad/s]
 

@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from imu_integration import integrate_imu
 
 from gaitnet.config import load_config
 from gaitnet.io import SessionFolder
@@ -15,7 +14,9 @@ from gaitnet.io.trajectory import read_tum
 from gaitnet.sim.config import SimConfig
 from gaitnet.sim.gait import generate_walk
 from gaitnet.sim.imu import ImuConfig, simulate_imu
-from gaitnet.sim.session import rng_streams, simulate_session
+from gaitnet.sim.scene_setup import rng_streams
+from gaitnet.sim.session import simulate_session
+from gaitnet.sim.strapdown import integrate_imu
 from gaitnet.sim.subject import sample_subject
 
 CONFIG = Path(__file__).parents[1] / "configs" / "sim" / "tiny.yaml"

@@ -10,15 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gaitnet.motion.amass import (
-    DatasetSplit,
-    load_amass_clip,
-    load_prepared,
-    prepare_walking_subset,
-    read_amass_npz,
-)
+from gaitnet.motion.amass import DatasetSplit, load_amass_clip, read_amass_npz
+from gaitnet.motion.prepared import load_prepared, prepare_walking_subset
 from gaitnet.motion.skeleton import ROTATED_SMPL_INDICES, LowerBodySkeleton, forward_kinematics
-from gaitnet.motion.synthetic import (
+from gaitnet.sim.amass_clips import (
     REST_JOINTS_KEY,
     SYNTH_DATASET_SPLIT,
     SyntheticWalksConfig,

@@ -1,9 +1,12 @@
 """Synthetic walking clips in AMASS's SMPL+H G ``*_poses.npz`` format (thesis sec. 4.2.2).
 
+A product of the simulator (it lives in :mod:`gaitnet.sim`, which builds on
+:mod:`gaitnet.motion`; nothing in :mod:`gaitnet.motion` imports the simulator).
+
 The thesis trains its motion predictor (sec. 4.2) on AMASS walking clips. AMASS is licensed and
 not downloadable at run time, so this module writes clips of the same format from the
 simulator's gait generator (:func:`gaitnet.sim.gait.generate_walk`): the files go through the
-real AMASS loader (:func:`gaitnet.motion.amass.prepare_walking_subset`, resampling by time
+real AMASS loader (:func:`gaitnet.motion.prepared.prepare_walking_subset`, resampling by time
 included) exactly as downloaded AMASS clips would.
 
 One clip = one whole simulated walk (standing start, gait initiation, steady walking, optional
@@ -11,7 +14,7 @@ turn, stopping, standing end), sampled at a mocap-like rate drawn from
 :attr:`SyntheticWalksConfig.mocap_rates_hz` (60 / 100 / 120 Hz by default, so the 30 fps
 resampling is exercised with non-integer and integer ratios alike).
 
-Keys written (AMASS SMPL+H G, see :data:`gaitnet.motion.amass.PREPARED_KEYS` for what is read):
+Keys written (AMASS SMPL+H G, see :data:`gaitnet.motion.prepared.PREPARED_KEYS` for what is read):
 
 * ``poses`` (T, 156) float64: root orientation in ``[0:3]``, SMPL joint ``k``'s local
   axis-angle in ``[3k : 3k+3]``; only the lower-body joints 1, 2, 4, 5, 7, 8, 10, 11 are
@@ -55,10 +58,13 @@ from pathlib import Path
 
 import numpy as np
 
-from gaitnet.io.atomic import atomic_open, atomic_write_text
+from gaitnet.io.atomic import atomic_open, atomic_write_text, staged_folder
 from gaitnet.motion.amass import DatasetSplit
 from gaitnet.motion.skeleton import ROTATED_SMPL_INDICES
+from gaitnet.sim.checks import check_each, check_int_range, check_range
+from gaitnet.sim.config import HEIGHT_LIMITS_M
 from gaitnet.sim.gait import GaitConfig, Walk, generate_walk
+from gaitnet.sim.scene_setup import SEED_LIMIT
 from gaitnet.sim.subject import HEIGHT_RANGE_M, Subject, sample_subject
 
 __all__ = [
@@ -138,8 +144,20 @@ class SyntheticWalksConfig:
                     )
         if not self.mocap_rates_hz or min(self.mocap_rates_hz) < 30.0:
             raise ValueError(f"mocap_rates_hz must be rates >= 30 Hz, got {self.mocap_rates_hz}")
-        if not 0.0 <= self.turn_probability <= 1.0:
-            raise ValueError(f"turn_probability must be in [0, 1], got {self.turn_probability}")
+        check_range("turn_probability", self.turn_probability, 0.0, 1.0)
+        check_int_range("seed", self.seed, 0, SEED_LIMIT - 1)
+        for name, lo, hi in (
+            ("height_range_m", *HEIGHT_LIMITS_M),
+            ("walk_length_range_m", 3.0, 100.0),
+            ("turn_range_deg", 0.0, 360.0),
+            ("step_cv_range", 0.0, 0.1),
+            ("step_width_std_range_m", 0.0, 0.1),
+        ):
+            band = getattr(self, name)
+            check_each(name, band, lo, hi)
+            if band[0] > band[1]:
+                raise ValueError(f"{name} must be [low, high], got {band}")
+        check_each("mocap_rates_hz", self.mocap_rates_hz, 30.0, 1000.0)
 
 
 @dataclass(frozen=True)
@@ -278,6 +296,7 @@ def make_synthetic_walks(
     out_root: str | Path,
     cfg: SyntheticWalksConfig | None = None,
     *,
+    overwrite: bool = False,
     progress: Callable[[Iterable[tuple[str, int]], int], Iterable[tuple[str, int]]] | None = None,
 ) -> SyntheticWalksReport:
     """Generate the three sub-datasets under ``out_root`` and a ``manifest.json``.
@@ -285,9 +304,20 @@ def make_synthetic_walks(
     Deterministic given ``cfg.seed``: every subject has its own child generator of
     ``SeedSequence(seed)``, so a subject's clips do not depend on how many subjects come
     before it in other splits. ``progress(iterable, total)`` may wrap the subject loop.
+    ``out_root`` must not exist or be empty (else ``overwrite`` replaces it); it appears only
+    when complete (:func:`gaitnet.io.atomic.staged_folder`).
     """
     cfg = SyntheticWalksConfig() if cfg is None else cfg
-    root = Path(out_root)
+    with staged_folder(out_root, overwrite) as staging:
+        clips = _write_clips(staging, cfg, progress)
+    return SyntheticWalksReport(root=Path(out_root), clips=clips)
+
+
+def _write_clips(
+    root: Path,
+    cfg: SyntheticWalksConfig,
+    progress: Callable[[Iterable[tuple[str, int]], int], Iterable[tuple[str, int]]] | None,
+) -> tuple[SyntheticClip, ...]:
     jobs = [
         (split, i)
         for split, n in (
@@ -334,7 +364,7 @@ def make_synthetic_walks(
         "clips": [asdict(c) for c in clips],
     }
     atomic_write_text(root / "manifest.json", json.dumps(manifest, indent=1) + "\n")
-    return SyntheticWalksReport(root=root, clips=tuple(clips))
+    return tuple(clips)
 
 
 def _jsonable(value: object) -> object:

@@ -3,33 +3,44 @@
 Sections: ``subject``, ``gait`` (:class:`gaitnet.sim.gait.GaitConfig`), ``camera`` and
 ``mount`` (:mod:`gaitnet.sim.rig`), ``imu`` (:class:`gaitnet.sim.imu.ImuConfig`), ``scene``,
 ``sensor`` (:class:`gaitnet.sim.sensor_model.SensorNoiseConfig`) and ``output``. Every key
-has a default, so an empty file is the default session. See docs/simulator.md for the table.
+has a default, so an empty file is the default session. Each section checks its values' ranges
+in its ``__post_init__``; :class:`SimConfig` checks the few that depend on two sections. See
+docs/simulator.md for the table of keys and ranges.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from gaitnet.sim.floor import FLOOR_FAMILIES
+from gaitnet.sim.checks import check_each, check_int_range, check_range
+from gaitnet.sim.floor import COARSEST_TEXEL_M, FLOOR_FAMILIES, MAX_TEXTURE_SIDE
 from gaitnet.sim.gait import GaitConfig
 from gaitnet.sim.imu import ImuConfig
 from gaitnet.sim.rig import CameraConfig, MountConfig
 from gaitnet.sim.sensor_model import SensorNoiseConfig
 
+HEIGHT_LIMITS_M = (1.2, 2.2)
+#: The floor reaches this much further than the walk itself (see ``scene_setup.floor_extent``).
+FLOOR_MARGIN_M = 6.0
+
 
 @dataclass(frozen=True)
 class SubjectConfig:
-    """``height_m`` fixes the body height; None samples it uniformly in ``height_range_m``."""
+    """``height_m`` fixes the body height; None samples it uniformly in ``height_range_m``.
+
+    Heights within 1.2–2.2 m.
+    """
 
     height_m: float | None = None
     height_range_m: tuple[float, float] = (1.55, 1.90)
 
     def __post_init__(self) -> None:
-        lo, hi = self.height_range_m
-        if not 1.2 <= lo <= hi <= 2.2:
-            raise ValueError(f"height_range_m must be within 1.2–2.2 m, got {self.height_range_m}")
-        if self.height_m is not None and not 1.2 <= self.height_m <= 2.2:
-            raise ValueError(f"height_m must be within 1.2–2.2 m, got {self.height_m}")
+        lo, hi = HEIGHT_LIMITS_M
+        check_each("height_range_m", self.height_range_m, lo, hi, " m")
+        if self.height_range_m[0] > self.height_range_m[1]:
+            raise ValueError(f"height_range_m must be [low, high], got {self.height_range_m}")
+        if self.height_m is not None:
+            check_range("height_m", self.height_m, lo, hi, " m")
 
 
 @dataclass(frozen=True)
@@ -37,14 +48,17 @@ class SceneConfig:
     """The room the subject walks in.
 
     ``floor_family``: one of tiles, wood, carpet, concrete, textureless, or ``random``.
-    ``clutter_count``: boxes/cylinders placed away from the walking path.
+    ``clutter_count``: boxes/cylinders placed away from the walking path (0–50).
     ``shoe_like_floor_prob``: chance that the shoes take a colour close to the floor's.
     ``lighting_variation``: sample key/ambient light, direction and tint per session (else the
-    defaults); ``exposure_range``: the session's exposure is drawn from this range and drifts
-    slowly (auto-exposure) by ``exposure_drift`` (relative std over the session).
+    defaults); ``exposure_range``: the session's exposure factor is drawn from this range
+    (within 0.25–4) and drifts slowly (auto-exposure) by ``exposure_drift`` (relative std over
+    the session, 0–0.5).
     ``apriltag_boards``: put the A3 sheets of 5×7 tag36h11 tags in front of the feet at the
-    start and at the end; ``tag_size_m``/``tag_gap_m`` define the printed grid.
+    start and at the end; ``tag_size_m`` (0.01–0.05 m) / ``tag_gap_m`` (0–0.03 m) define the
+    printed grid, which must fit on the sheet.
     ``room``: walls and a ceiling around the floor (else an unbounded floor).
+    ``texel_m``: floor texture resolution, 0.002–0.02 m.
     """
 
     floor_family: str = "random"
@@ -65,24 +79,32 @@ class SceneConfig:
                 f"floor_family must be one of {', '.join(FLOOR_FAMILIES)} or random, "
                 f"got {self.floor_family!r}"
             )
-        if not 0 <= self.clutter_count <= 50:
-            raise ValueError("clutter_count must be within 0–50")
-        if not 0.0 <= self.shoe_like_floor_prob <= 1.0:
-            raise ValueError("shoe_like_floor_prob must be a probability")
+        check_int_range("clutter_count", self.clutter_count, 0, 50)
+        check_range("shoe_like_floor_prob", self.shoe_like_floor_prob, 0.0, 1.0)
+        check_each("exposure_range", self.exposure_range, 0.25, 4.0)
+        if self.exposure_range[0] > self.exposure_range[1]:
+            raise ValueError(f"exposure_range must be [low, high], got {self.exposure_range}")
+        check_range("exposure_drift", self.exposure_drift, 0.0, 0.5)
+        check_range("tag_size_m", self.tag_size_m, 0.01, 0.05, " m")
+        check_range("tag_gap_m", self.tag_gap_m, 0.0, 0.03, " m")
         if (
             5 * self.tag_size_m + 4 * self.tag_gap_m > 0.28
             or 7 * self.tag_size_m + 6 * self.tag_gap_m > 0.40
         ):
             raise ValueError("5×7 tags of tag_size_m with tag_gap_m do not fit on an A3 sheet")
+        check_range("texel_m", self.texel_m, 0.002, COARSEST_TEXEL_M, " m")
 
 
 @dataclass(frozen=True)
 class OutputConfig:
     """``labels``: write per-frame label and instance maps; ``preview_frames``: frames in the
-    contact sheet ``preview.png`` (0 = none)."""
+    contact sheet ``preview.png`` (0 = none, at most 24)."""
 
     labels: bool = True
     preview_frames: int = 6
+
+    def __post_init__(self) -> None:
+        check_int_range("preview_frames", self.preview_frames, 0, 24)
 
 
 @dataclass(frozen=True)
@@ -95,3 +117,13 @@ class SimConfig:
     scene: SceneConfig = field(default_factory=SceneConfig)
     sensor: SensorNoiseConfig = field(default_factory=SensorNoiseConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
+
+    def __post_init__(self) -> None:
+        # The floor texture spans the walk plus margins; its side is limited (floor.py).
+        longest_m = self.gait.walk_length_m + FLOOR_MARGIN_M
+        if longest_m / self.scene.texel_m > MAX_TEXTURE_SIDE:
+            raise ValueError(
+                f"scene.texel_m {self.scene.texel_m:g} is too fine for gait.walk_length_m "
+                f"{self.gait.walk_length_m:g} (the floor would exceed {MAX_TEXTURE_SIDE} texels; "
+                f"use scene.texel_m ≥ {longest_m / MAX_TEXTURE_SIDE:.4f})"
+            )

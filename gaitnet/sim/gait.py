@@ -22,16 +22,16 @@ Step length from speed: ``step = ratio · H · (v / 1.3 m/s)^exponent`` with rat
 often-quoted "step ≈ 0.41 H" at a normal 1.3 m/s) and exponent 0.5, so a 1.75 m subject at
 1.2–1.4 m/s walks at about 105–115 steps/min with 1.35–1.45 m strides.
 
-Knees (textbook values, /work/shared/docs/references.md): the pelvis height is derived from
-the legs, not the other way round. The leg that carries the body has a designed knee flexion
-— ``knee_extended_deg`` (3°) at heel strike and in mid-stance, a ``knee_loading_deg`` (17°)
-loading-response peak at 13 % of the cycle — and the pelvis height is the smooth curve closest
-to the heights at which the legs have those angles (:func:`gait_pelvis.stance_knee`); the
-swing knee, the trailing knee in pre-swing and every knee angle then follow by IK. Standing,
-both knees are at ``knee_extended_deg``. ``REACH_FRACTION`` (knee ≥ about 1°) only guards the
-IK. For a 1.75 m subject at 1.3 m/s this gives a knee of about 5–7° at heel strike, 18° in
-loading response, 5° in mid-stance, 38° at toe off and 60° in swing, and a pelvis vertical
-excursion of 3–4.5 cm per step.
+Knees (textbook values, docs/references.md, *Normal adult walking*): the pelvis height is
+derived from the legs, not the other way round. The leg that carries the body has a designed
+knee flexion — ``knee_extended_deg`` (3°) at heel strike and in mid-stance, a
+``knee_loading_deg`` (17°) loading-response peak at 13 % of the cycle — and the pelvis height
+is the smooth curve closest to the heights at which the legs have those angles
+(:func:`gait_pelvis.stance_knee`); the swing knee, the trailing knee in pre-swing and every
+knee angle then follow by IK. Standing, both knees are at ``knee_extended_deg``.
+``REACH_FRACTION`` (knee ≥ about 1°) only guards the IK. For a 1.75 m subject at 1.3 m/s this
+gives a knee of about 5–7° at heel strike, 18° in loading response, 5° in mid-stance, 38° at
+toe off and 60° in swing, and a pelvis vertical excursion of 3–4.5 cm per step.
 
 Heel off adapts to the legs: it moves earlier (down to ``min_heel_off_fraction`` of the cycle)
 when the trailing leg would otherwise run out of reach of the desired pelvis height, as a real
@@ -47,6 +47,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gaitnet.motion.skeleton import LowerBodySkeleton
+from gaitnet.sim.checks import check_range
 from gaitnet.sim.gait_feet import FootTrajectory, adapt_heel_off, build_foot_trajectory
 from gaitnet.sim.gait_legs import R_PfromSMPL, leg_chain, smpl_pose_from_chain
 from gaitnet.sim.gait_pelvis import (
@@ -91,7 +92,8 @@ class GaitConfig:
 
     The pelvis vertical excursion is not a parameter: it follows from the legs, whose stance
     knee is designed by ``knee_extended_deg`` (heel strike, mid-stance, standing) and
-    ``knee_loading_deg`` (loading-response peak).
+    ``knee_loading_deg`` (loading-response peak). Valid ranges: ``__post_init__`` (the key
+    table of docs/simulator.md lists them).
     """
 
     speed_mps: float = 1.2
@@ -122,26 +124,35 @@ class GaitConfig:
     first_foot: str = "random"
 
     def __post_init__(self) -> None:
-        _check_range("speed_mps", self.speed_mps, 0.6, 1.7)
-        _check_range("walk_length_m", self.walk_length_m, 3.0, 100.0)
-        _check_range("step_width_m", self.step_width_m, 0.0, 0.3)
-        _check_range("stand_start_s", self.stand_start_s, 1.0, 60.0)
-        _check_range("stand_end_s", self.stand_end_s, 1.0, 60.0)
-        _check_range("turn_deg", self.turn_deg, -360.0, 360.0)
-        _check_range("toe_clearance_m", self.toe_clearance_m, 0.005, 0.05)
-        _check_range("stance_fraction", self.stance_fraction, 0.55, 0.7)
-        _check_range("knee_extended_deg", self.knee_extended_deg, 2.0, 10.0)
-        _check_range("knee_loading_deg", self.knee_loading_deg, self.knee_extended_deg, 30.0)
-        _check_range("foot_flat_fraction", self.foot_flat_fraction, 0.02, 0.15)
-        _check_range("heel_off_fraction", self.heel_off_fraction, 0.2, self.stance_fraction - 0.1)
-        _check_range(
+        check_range("speed_mps", self.speed_mps, 0.6, 1.7)
+        check_range("walk_length_m", self.walk_length_m, 3.0, 100.0)
+        check_range("step_width_m", self.step_width_m, 0.0, 0.3)
+        check_range("stand_start_s", self.stand_start_s, 1.0, 60.0)
+        check_range("stand_end_s", self.stand_end_s, 1.0, 60.0)
+        check_range("turn_deg", self.turn_deg, -360.0, 360.0)
+        check_range("toe_clearance_m", self.toe_clearance_m, 0.005, 0.05)
+        check_range("stance_fraction", self.stance_fraction, 0.55, 0.7)
+        check_range("knee_extended_deg", self.knee_extended_deg, 2.0, 10.0)
+        check_range("knee_loading_deg", self.knee_loading_deg, self.knee_extended_deg, 30.0)
+        check_range("foot_flat_fraction", self.foot_flat_fraction, 0.02, 0.15)
+        check_range("heel_off_fraction", self.heel_off_fraction, 0.2, self.stance_fraction - 0.1)
+        check_range(
             "min_heel_off_fraction",
             self.min_heel_off_fraction,
             self.foot_flat_fraction + 0.05,
             self.heel_off_fraction,
         )
         for name in ("step_length_cv", "step_time_cv", "step_width_std_m"):
-            _check_range(name, getattr(self, name), 0.0, 0.1)
+            check_range(name, getattr(self, name), 0.0, 0.1)
+        check_range("pelvis_lateral_m", self.pelvis_lateral_m, 0.0, 0.06)
+        for name in ("pelvis_rotation_deg", "pelvis_obliquity_deg"):
+            check_range(name, getattr(self, name), 0.0, 15.0)
+        check_range("pelvis_tilt_deg", self.pelvis_tilt_deg, 0.0, 10.0)
+        check_range("heel_strike_pitch_deg", self.heel_strike_pitch_deg, 5.0, 30.0)
+        check_range("toe_off_pitch_deg", self.toe_off_pitch_deg, 15.0, _MAX_TO_PITCH_DEG)
+        check_range("toe_out_deg", self.toe_out_deg, -10.0, 25.0)
+        check_range("step_length_height_ratio", self.step_length_height_ratio, 0.3, 0.5)
+        check_range("step_length_speed_exponent", self.step_length_speed_exponent, 0.0, 1.0)
         if self.first_foot not in ("left", "right", "random"):
             raise ValueError(f"first_foot must be left, right or random, got {self.first_foot!r}")
 
@@ -149,11 +160,6 @@ class GaitConfig:
         """Steady step length for a subject of ``height_m`` at this speed."""
         ratio = self.speed_mps / REFERENCE_SPEED_MPS
         return self.step_length_height_ratio * height_m * ratio**self.step_length_speed_exponent
-
-
-def _check_range(name: str, value: float, lo: float, hi: float) -> None:
-    if not lo <= value <= hi:
-        raise ValueError(f"GaitConfig.{name} must be within [{lo}, {hi}], got {value}")
 
 
 class ShoeTrajectory(NamedTuple):

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gaitnet.io.types import ImuNoise, ImuSamples
+from gaitnet.sim.checks import check_range
 
 # (R_WfromP (n,3,3), p_PinW (n,3), v (n,3), a (n,3), omega_P (n,3)) at times t (n,)
 PelvisKinematics = Callable[
@@ -35,9 +36,15 @@ G_UG = 9.80665e-6  # one micro-g in m/s²
 class ImuConfig:
     """IMU rate and error model. Defaults: the D455's BMI055 (datasheet densities).
 
-    Gyro noise 0.014 °/s/√Hz, accelerometer 150 µg/√Hz (references.md); bias random walks and
-    initial biases are typical BMI055-class values. ``timestamp_jitter_s`` is the std of the
-    sampling instants around the nominal grid.
+    Gyro noise 0.014 °/s/√Hz, accelerometer 150 µg/√Hz (BMI055 class, docs/references.md,
+    *Sensors*); bias random walks and initial biases are typical BMI055-class values.
+    ``timestamp_jitter_s`` is the std of the sampling instants around the nominal grid.
+
+    Valid values (SI): ``rate_hz`` 50–2000; ``gravity_mps2`` 9.7–9.9 (Earth's surface);
+    ``gyro_noise_density`` 0–0.01 rad/s/√Hz; ``accel_noise_density`` 0–0.1 m/s²/√Hz;
+    ``gyro_bias_random_walk`` 0–0.01 rad/s²/√Hz; ``accel_bias_random_walk`` 0–0.1 m/s³/√Hz;
+    ``gyro_initial_bias_std`` 0–0.2 rad/s; ``accel_initial_bias_std`` 0–1 m/s²;
+    ``timestamp_jitter_s`` from 0 to a tenth of the sample period.
     """
 
     rate_hz: float = 200.0
@@ -52,10 +59,18 @@ class ImuConfig:
     noise_free: bool = False
 
     def __post_init__(self) -> None:
-        if self.rate_hz <= 0 or self.gravity_mps2 <= 0:
-            raise ValueError("rate_hz and gravity_mps2 must be positive")
-        if self.timestamp_jitter_s * self.rate_hz > 0.1:
-            raise ValueError("timestamp_jitter_s must be well below the sample period")
+        check_range("rate_hz", self.rate_hz, 50.0, 2000.0, " Hz")
+        check_range("gravity_mps2", self.gravity_mps2, 9.7, 9.9, " m/s²")
+        for name, hi in (
+            ("gyro_noise_density", 0.01),
+            ("accel_noise_density", 0.1),
+            ("gyro_bias_random_walk", 0.01),
+            ("accel_bias_random_walk", 0.1),
+            ("gyro_initial_bias_std", 0.2),
+            ("accel_initial_bias_std", 1.0),
+        ):
+            check_range(name, getattr(self, name), 0.0, hi)
+        check_range("timestamp_jitter_s", self.timestamp_jitter_s, 0.0, 0.1 / self.rate_hz, " s")
 
     def noise(self) -> ImuNoise:
         return ImuNoise(

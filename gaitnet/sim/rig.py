@@ -6,20 +6,28 @@ x right, y down, z forward), IMU I (rigidly attached to the camera, ``T_CfromI``
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from gaitnet.geometry import make_T, so3_exp
 from gaitnet.io.types import CameraIntrinsics
+from gaitnet.sim.checks import check_each, check_int_range, check_range
 
 # Camera looking along the pelvis x axis, level: camera x = −pelvis y, y = −pelvis z, z = pelvis x.
 R_PfromC_LEVEL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+PITCH_RANGE_DEG = (10.0, 89.0)  # valid mount.pitch_deg values
+FOV_RANGE_DEG = (10.0, 150.0)  # valid horizontal and vertical fields of view
 
 
 @dataclass(frozen=True)
 class CameraConfig:
-    """Colour camera (depth is aligned to it). Defaults: a D455 at 640×480, 30 Hz."""
+    """Colour camera (depth is aligned to it). Defaults: a D455 at 640×480, 30 Hz.
+
+    Valid values: ``width`` 16–2048 and ``height`` 16–2048 px; ``fx``, ``fy`` such that the
+    horizontal and vertical fields of view lie within 10–150°; the principal point inside the
+    image; ``fps`` 1–120 Hz.
+    """
 
     width: int = 640
     height: int = 480
@@ -30,8 +38,15 @@ class CameraConfig:
     fps: float = 30.0
 
     def __post_init__(self) -> None:
-        if self.width < 16 or self.height < 16 or self.fx <= 0 or self.fy <= 0 or self.fps <= 0:
-            raise ValueError("camera size, focal lengths and fps must be positive")
+        check_int_range("width", self.width, 16, 2048)
+        check_int_range("height", self.height, 16, 2048)
+        for name, focal, size in (("fx", self.fx, self.width), ("fy", self.fy, self.height)):
+            # field of view 2·atan(size / 2f) within FOV_RANGE_DEG
+            lo, hi = (size / (2 * np.tan(np.deg2rad(a) / 2)) for a in FOV_RANGE_DEG[::-1])
+            check_range(name, focal, round(float(lo), 3), round(float(hi), 3), " px (FOV 10–150°)")
+        check_range("cx", self.cx, 0.0, float(self.width), " px")
+        check_range("cy", self.cy, 0.0, float(self.height), " px")
+        check_range("fps", self.fps, 1.0, 120.0, " Hz")
 
     def intrinsics(self) -> CameraIntrinsics:
         return CameraIntrinsics(self.width, self.height, self.fx, self.fy, self.cx, self.cy)
@@ -41,13 +56,19 @@ class CameraConfig:
 class MountConfig:
     """Where the camera sits on the pelvis and how the IMU sits in the camera.
 
-    ``pitch_deg``: downward pitch of the optical axis from horizontal (thesis: about 30–75°).
-    ``offset_m``: camera centre in the pelvis frame (forward, left, up) [m] — on the belly.
-    ``imu_in_camera_m`` / ``imu_rpy_deg``: the IMU origin in the camera frame and the
-    IMU-to-camera rotation (roll, pitch, yaw about the camera x, y, z axes).
+    ``pitch_deg``: downward pitch of the optical axis from horizontal (thesis: about 30–75°),
+    10–89°; a pair ``[lo, hi]`` draws it uniformly from that range, once per session in
+    ``gaitnet simulate`` and once per frame in ``gaitnet simulate-dataset``.
+    ``yaw_deg`` (±60°) and ``roll_deg`` (±45°): the camera turned about the vertical / its
+    optical axis.
+    ``offset_m``: camera centre in the pelvis frame (forward 0–0.4, left ±0.3, up ±0.4 m) — on
+    the belly.
+    ``imu_in_camera_m`` / ``imu_rpy_deg``: the IMU origin in the camera frame (each coordinate
+    within ±0.1 m: inside the camera housing) and the IMU-to-camera rotation (roll, pitch, yaw
+    about the camera x, y, z axes, each within ±180°).
     """
 
-    pitch_deg: float = 70.0
+    pitch_deg: float | tuple[float, float] = 70.0
     yaw_deg: float = 0.0
     roll_deg: float = 0.0
     offset_m: tuple[float, float, float] = (0.17, 0.0, 0.05)
@@ -55,11 +76,44 @@ class MountConfig:
     imu_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
-        if not 10.0 <= self.pitch_deg <= 89.0:
-            raise ValueError(f"pitch_deg must be within 10–89°, got {self.pitch_deg}")
+        lo, hi = PITCH_RANGE_DEG
+        if isinstance(self.pitch_deg, tuple):
+            check_each("pitch_deg", self.pitch_deg, lo, hi, "°")
+            if len(self.pitch_deg) != 2 or self.pitch_deg[0] > self.pitch_deg[1]:
+                raise ValueError(f"pitch_deg as a range must be [lo, hi], got {self.pitch_deg}")
+        else:
+            check_range("pitch_deg", self.pitch_deg, lo, hi, "°")
+        check_range("yaw_deg", self.yaw_deg, -60.0, 60.0, "°")
+        check_range("roll_deg", self.roll_deg, -45.0, 45.0, "°")
+        for name, value, (a, b) in zip(
+            ("offset_m[0] (forward)", "offset_m[1] (left)", "offset_m[2] (up)"),
+            self.offset_m,
+            ((0.0, 0.4), (-0.3, 0.3), (-0.4, 0.4)),
+            strict=True,
+        ):
+            check_range(name, value, a, b, " m")
+        check_each("imu_in_camera_m", self.imu_in_camera_m, -0.1, 0.1, " m")
+        check_each("imu_rpy_deg", self.imu_rpy_deg, -180.0, 180.0, "°")
+
+    @property
+    def pitch_is_drawn(self) -> bool:
+        """True when ``pitch_deg`` is a range to draw from."""
+        return isinstance(self.pitch_deg, tuple)
+
+    def with_pitch(self, rng: np.random.Generator) -> MountConfig:
+        """This mount with a fixed pitch: ``pitch_deg`` itself, or drawn from its range with
+        ``rng`` (which is not used when the pitch is fixed)."""
+        if not isinstance(self.pitch_deg, tuple):
+            return self
+        return replace(self, pitch_deg=float(rng.uniform(*self.pitch_deg)))
 
     def T_PfromC(self) -> np.ndarray:
-        """Camera pose in the pelvis frame: level camera, then yaw, pitch down, roll."""
+        """Camera pose in the pelvis frame: level camera, then yaw, pitch down, roll.
+
+        Needs a fixed pitch (:meth:`with_pitch` turns a range into one).
+        """
+        if isinstance(self.pitch_deg, tuple):
+            raise ValueError("mount.pitch_deg is a range: draw the pitch first (with_pitch)")
         yaw = so3_exp(np.deg2rad(self.yaw_deg) * np.array([0.0, 0.0, 1.0]))
         pitch = so3_exp(np.deg2rad(self.pitch_deg) * np.array([0.0, 1.0, 0.0]))
         roll = so3_exp(np.deg2rad(self.roll_deg) * np.array([1.0, 0.0, 0.0]))

@@ -4,7 +4,7 @@ Colour: optics/demosaicing blur, vignetting, exposure × white balance, black le
 shot noise and read noise (in electrons, added in the variance-stabilised square-root domain),
 sRGB encoding and 8-bit quantisation.
 
-Depth (references.md): stereo noise grows with the square of the distance,
+Depth (docs/references.md, *Sensors*): stereo noise grows with the square of the distance,
 ``σ_z = z² σ_d / (f b)`` (baseline ``b`` = 95 mm, sub-pixel disparity noise ``σ_d`` ≈ 0.08 px),
 partly spatially correlated (a share of the variance is drawn at a coarser grid and
 upsampled); pixels are invalid (0) below the minimum range and beyond the maximum range, at
@@ -25,10 +25,11 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import ndtri
 
+from gaitnet.sim.checks import check_each, check_int_range, check_range
 from gaitnet.sim.render_color import linear_to_srgb
 from gaitnet.sim.render_types import F32, RenderResult
 
-__all__ = ["SensorNoiseConfig", "apply_sensor", "auto_exposure"]
+__all__ = ["SENSOR_RANGES", "SensorNoiseConfig", "apply_sensor", "auto_exposure"]
 
 
 @dataclass(frozen=True)
@@ -44,7 +45,7 @@ class SensorNoiseConfig:
     ``max_range_m``, ``edge_jump_m`` + ``edge_jump_rel``·z (a neighbour jump larger than this
     invalidates both pixels) grown by ``edge_dilate_px``, ``occlusion_shadow`` on/off,
     ``dropout_fraction`` isolated holes and ``blob_fraction`` holes in blobs of about
-    ``blob_px`` pixels.
+    ``blob_px`` pixels. Valid ranges: :data:`SENSOR_RANGES`.
     """
 
     full_well_e: float = 2500.0
@@ -68,12 +69,39 @@ class SensorNoiseConfig:
     blob_px: int = 6
 
     def __post_init__(self) -> None:
-        if self.full_well_e <= 0 or self.baseline_m <= 0 or self.noise_cell_px < 1:
-            raise ValueError("full_well_e, baseline_m and noise_cell_px must be positive")
-        if not 0.0 <= self.correlated_fraction <= 1.0:
-            raise ValueError("correlated_fraction must be within [0, 1]")
-        if not 0.0 < self.min_range_m < self.max_range_m:
-            raise ValueError("need 0 < min_range_m < max_range_m")
+        for name, lo, hi in SENSOR_RANGES:
+            value = getattr(self, name)
+            if isinstance(value, tuple):
+                check_each(name, value, lo, hi)
+            elif isinstance(lo, int) and isinstance(hi, int):
+                check_int_range(name, value, lo, hi)
+            else:
+                check_range(name, value, lo, hi)
+
+
+#: Valid values of :class:`SensorNoiseConfig` (key, low, high; ints for integer keys): settings
+#: outside them give black, white or empty images rather than a D455-like camera's
+#: (``min_range_m`` ≤ 1 m < 2 m ≤ ``max_range_m``, so the valid range is never empty).
+SENSOR_RANGES: tuple[tuple[str, float, float], ...] = (
+    ("full_well_e", 100.0, 1e6),
+    ("read_noise_e", 0.0, 100.0),
+    ("black_level", 0.0, 0.2),
+    ("vignetting", 0.0, 0.9),
+    ("blur_sigma_px", 0.0, 5.0),
+    ("white_balance", 0.25, 4.0),
+    ("baseline_m", 0.01, 0.5),
+    ("disparity_noise_px", 0.0, 1.0),
+    ("correlated_fraction", 0.0, 1.0),
+    ("noise_cell_px", 1, 32),
+    ("min_range_m", 0.1, 1.0),
+    ("max_range_m", 2.0, 20.0),
+    ("edge_jump_m", 0.0, 1.0),
+    ("edge_jump_rel", 0.0, 1.0),
+    ("edge_dilate_px", 0, 10),
+    ("dropout_fraction", 0.0, 0.5),
+    ("blob_fraction", 0.0, 0.5),
+    ("blob_px", 1, 64),
+)
 
 
 def auto_exposure(rgb_linear: F32, target: float = 0.18, percentile_cap: float = 99.0) -> float:

@@ -1,7 +1,13 @@
-"""An independent strapdown integrator for tests: RK4 on (R, p, v) with spline-interpolated IMU.
+"""A reference strapdown integrator: RK4 on (R, p, v) with spline-interpolated IMU samples.
 
-Written separately from the simulator so that a test integrating the simulator's noise-free
-IMU and recovering its trajectory is a real check of the specific-force / angular-rate model.
+It checks the simulator's IMU (:mod:`gaitnet.sim.imu`), in the tests and in
+``benchmarks/validate_sim.py``: integrating the noise-free IMU from the true initial state must
+recover the true trajectory, a real check of the specific-force / angular-rate model because
+this code shares nothing with the IMU synthesis. Accuracy over speed (dense RK4 sub-steps); it
+is not the estimator's propagation, which belongs to the filter.
+
+Model (world z up, ``g̃ = [0, 0, g]``, ``f`` specific force and ``ω`` angular rate in the IMU
+frame): ``Ṙ = R [ω]×``, ``ṗ = v``, ``v̇ = R f − g̃``.
 """
 
 from __future__ import annotations
@@ -10,10 +16,14 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
+from gaitnet.geometry import skew
+
 
 def _rk4_step(R, p, v, t, h, f_of, w_of, g):
+    """One RK4 step of the model (module docstring), re-orthonormalising R."""
+
     def deriv(R_, v_, tau):
-        return R_ @ _skew(w_of(tau)), v_, R_ @ f_of(tau) - g
+        return R_ @ skew(w_of(tau)), v_, R_ @ f_of(tau) - g
 
     dR1, dp1, dv1 = deriv(R, v, t)
     dR2, dp2, dv2 = deriv(R + 0.5 * h * dR1, v + 0.5 * h * dv1, t + 0.5 * h)
@@ -27,12 +37,18 @@ def _rk4_step(R, p, v, t, h, f_of, w_of, g):
     return R_new, p_new, v_new
 
 
-def _skew(w):
-    return np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
-
-
-def integrate_imu(t_s, accel, gyro, R0, p0, v0, gravity, substeps: int = 2):
-    """World-frame IMU positions at ``t_s`` from the initial state (world z up)."""
+def integrate_imu(
+    t_s: np.ndarray,
+    accel: np.ndarray,
+    gyro: np.ndarray,
+    R0: np.ndarray,
+    p0: np.ndarray,
+    v0: np.ndarray,
+    gravity: float,
+    substeps: int = 2,
+) -> tuple[np.ndarray, list[Rotation]]:
+    """IMU positions (n, 3) and orientations at ``t_s`` (n,) in the world, integrated from
+    ``R0 = R_WfromI``, ``p0``, ``v0`` at ``t_s[0]`` with ``substeps`` RK4 steps per sample."""
     f_spline = CubicSpline(t_s, accel)
     w_spline = CubicSpline(t_s, gyro)
     g = np.array([0.0, 0.0, gravity])

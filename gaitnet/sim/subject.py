@@ -1,9 +1,10 @@
 """The simulated subject: body proportions, shoes, trouser-leg shapes and clothes colours.
 
-Segment lengths follow Winter's anthropometric ratios (references.md: thigh ≈ 0.245 H,
-shank ≈ 0.246 H, foot ≈ 0.152 H, ankle height ≈ 0.039 H) with a small per-subject random
-variation. The subject's :meth:`Subject.skeleton` is built from exactly these lengths, so the
-simulator's legs and the forward kinematics agree to rounding.
+Segment lengths follow Winter's anthropometric ratios (docs/references.md, *Sensors*:
+thigh ≈ 0.245 H, shank ≈ 0.246 H, foot ≈ 0.152 H; ankle height ≈ 0.039 H from the same tables)
+with a small per-subject random variation. The subject's :meth:`Subject.skeleton` is built
+from exactly these lengths, so the simulator's legs and the forward kinematics agree to
+rounding.
 
 Shoe frame (as in :mod:`gaitnet.sim.scene`): origin at the centre of the sole on the sole's
 plane, x towards the toe, y to the foot's left, z up. Points of the foot in that frame are
