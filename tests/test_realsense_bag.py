@@ -23,16 +23,12 @@ from bagfactory import (  # noqa: E402
 )
 
 from gaitnet.errors import SessionError  # noqa: E402
+from gaitnet.geometry import invert_T  # noqa: E402
+from gaitnet.io.bag_index import RosBag  # noqa: E402
+from gaitnet.io.depth_align import align_depth_to_color  # noqa: E402
 from gaitnet.io.imu_merge import merge_imu_streams  # noqa: E402
-from gaitnet.io.realsense_bag import (  # noqa: E402
-    TF_REF_TO_STREAM,
-    TF_STREAM_TO_REF,
-    RealSenseBag,
-    _Records,
-    align_depth_to_color,
-    invert_rigid,
-    relative_extrinsic,
-)
+from gaitnet.io.realsense_bag import TF_REF_TO_STREAM, TF_STREAM_TO_REF, RealSenseBag  # noqa: E402
+from gaitnet.io.realsense_extrinsics import relative_extrinsic  # noqa: E402
 from gaitnet.io.types import CameraIntrinsics  # noqa: E402
 
 
@@ -142,13 +138,13 @@ def test_small_chunks_uncompressed(tmp_path):
 def test_a_frame_reads_only_its_two_messages(sdk_bag, monkeypatch):
     bag = RealSenseBag(sdk_bag.path)
     calls = []
-    original = _Records.message
+    original = RosBag.read
 
-    def spy(self, entry, limit=None):
-        calls.append(entry)
-        return original(self, entry, limit)
+    def spy(self, ref, limit=None):
+        calls.append(ref)
+        return original(self, ref, limit)
 
-    monkeypatch.setattr(_Records, "message", spy)
+    monkeypatch.setattr(RosBag, "read", spy)
     bag.frame(3)
     assert len(calls) == 2
 
@@ -213,7 +209,7 @@ def test_fast_imu_parser_matches_generic_deserialization(sdk_bag, monkeypatch):
     import gaitnet.io.realsense_bag as rb
 
     fast = RealSenseBag(sdk_bag.path).imu
-    monkeypatch.setattr(rb, "_parse_imu", lambda raw, gyro: None)
+    monkeypatch.setattr(rb, "parse_imu_payload", lambda raw, gyro: None)
     slow = RealSenseBag(sdk_bag.path).imu
     np.testing.assert_array_equal(fast.t_ns, slow.t_ns)
     np.testing.assert_array_equal(fast.accel, slow.accel)
@@ -244,7 +240,7 @@ def test_relative_extrinsic_maps_points_between_streams():
     np.testing.assert_allclose(T[:3, :3] @ p_imu + T[:3, 3], p_color, atol=1e-12)
     # with tf read as T_{ref from stream} the same geometry is stored inverted
     T2 = relative_extrinsic(
-        invert_rigid(T_COLOR_FROM_DEPTH), invert_rigid(T_IMU_FROM_DEPTH), TF_STREAM_TO_REF
+        invert_T(T_COLOR_FROM_DEPTH), invert_T(T_IMU_FROM_DEPTH), TF_STREAM_TO_REF
     )
     np.testing.assert_allclose(T2, T, atol=1e-12)
 

@@ -1,14 +1,17 @@
-"""Low-level ROS1 ``.bag`` access: positioned reads of single messages and their decoding.
+"""A ROS1 ``.bag`` file: its index, positioned reads of single messages, and their decoding.
 
-A message is located by an :class:`_Entry` (record time, chunk position, offset in the chunk,
-connection id) taken from the bag index; :class:`_Records` reads just that record with
-``os.pread`` (uncompressed chunks: small positioned reads; compressed chunks are decompressed
-once each and cached). :class:`_Types` deserializes payloads with ``rosbags``; every message
-type is registered from the bag's own message definitions (``connection.msgdef``), so the
-SDK's ``realsense_msgs/*`` types work. :func:`_parse_imu` is a fast path for standard
-``sensor_msgs/Imu`` payloads.
+:class:`RosBag` is the only public entry point. Opening reads the bag's index with ``rosbags``
+(topics, connections and, per connection, where each message lies: a :class:`MessageRef`) and
+the header of every chunk; nothing else. :meth:`RosBag.read` then reads just one message's
+payload with ``os.pread`` (uncompressed chunks: small positioned reads; compressed chunks are
+decompressed once each and cached), :meth:`RosBag.decode` deserializes it with ``rosbags``;
+every message type is registered from the bag's own message definitions
+(``connection.msgdef``), so vendor types such as the RealSense SDK's ``realsense_msgs/*``
+work. :func:`parse_imu_payload` is a fast path for standard ``sensor_msgs/Imu`` payloads.
 
-Damaged records raise :class:`SessionError` with a one-line message that names the bag file.
+Errors: a file that is not a ROS1 bag, a bag without an index (a recording that was cut off:
+the message says how to rebuild it), a damaged index or damaged records raise
+:class:`~gaitnet.errors.SessionError` with a one-line message that names the bag file.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ _OP_CONNECTION = 7
 
 
 class _DamagedError(Exception):
-    pass
+    """A record of the bag is damaged (turned into SessionError at the public boundary)."""
 
 
 def _parse_header(buf: bytes) -> dict[bytes, bytes]:
@@ -63,8 +66,11 @@ class _ChunkLoc:
 
 
 @dataclass(frozen=True, slots=True)
-class _Entry:
-    """Where one message lies: record time, chunk, offset in the chunk, connection id."""
+class MessageRef:
+    """Where one message lies: record time [ns], chunk position, offset in the chunk, connection.
+
+    ``time`` is the bag's record time (when the message was written), not its header stamp.
+    """
 
     time: int
     chunk_pos: int
@@ -149,8 +155,8 @@ class _Records:
                 self._cache.popitem(last=False)
         return data
 
-    def message(self, entry: _Entry, limit: int | None = None) -> bytes:
-        """Serialized message at ``entry`` (its first ``limit`` bytes when given)."""
+    def message(self, entry: MessageRef, limit: int | None = None) -> tuple[bytes, int]:
+        """Serialized message at ``entry`` (its first ``limit`` bytes) and its full length."""
         try:
             return self._message(entry, limit)
         except _DamagedError as exc:
@@ -158,7 +164,7 @@ class _Records:
         except struct.error as exc:
             raise SessionError(f"{self.src}: bag data looks damaged ({exc})") from None
 
-    def _message(self, entry: _Entry, limit: int | None) -> bytes:
+    def _message(self, entry: MessageRef, limit: int | None) -> tuple[bytes, int]:
         loc = self.chunks.get(entry.chunk_pos)
         if loc is None:
             raise _DamagedError(f"index points to unknown chunk at byte {entry.chunk_pos}")
@@ -195,7 +201,7 @@ class _Records:
                 continue
             if op != bytes([_OP_MSGDATA]):
                 raise _DamagedError(f"no message record at offset {pos} of chunk {entry.chunk_pos}")
-            return read(data_pos, dl if limit is None else min(dl, limit))
+            return read(data_pos, dl if limit is None else min(dl, limit)), dl
 
 
 class _Types:
@@ -276,13 +282,22 @@ class _Types:
 
 
 _IMU_TAIL_DOUBLES = 4 + 9 + 3 + 9 + 3 + 9  # orientation, cov, gyro, cov, accel, cov
+NS_PER_S = 1_000_000_000
 
 
-def _parse_imu(raw: bytes, gyro: bool) -> tuple[int, tuple[float, float, float]] | None:
-    """Stamp and gyro (or accel) vector of a standard ROS1 ``sensor_msgs/Imu`` payload.
+def stamp_ns(sec: int, nsec: int) -> int:
+    """Nanoseconds of a ROS1 time ``(sec, nsec)``; ``ValueError`` if ``nsec`` is not below 1e9."""
+    if not 0 <= int(nsec) < NS_PER_S or int(sec) < 0:
+        raise ValueError(f"invalid time stamp (sec {sec}, nsec {nsec})")
+    return int(sec) * NS_PER_S + int(nsec)
+
+
+def parse_imu_payload(raw: bytes, gyro: bool) -> tuple[int, tuple[float, float, float]] | None:
+    """Stamp [ns] and gyro (or accel) vector of a standard ROS1 ``sensor_msgs/Imu`` payload.
 
     A direct ``struct`` read, ~10× faster than generic deserialization (IMU streams have
     hundreds of thousands of messages); None if the size does not fit the standard layout.
+    ``ValueError`` for an invalid stamp.
     """
     if len(raw) < 16:
         return None
@@ -291,11 +306,122 @@ def _parse_imu(raw: bytes, gyro: bool) -> tuple[int, tuple[float, float, float]]
     if len(raw) != base + 8 * _IMU_TAIL_DOUBLES:
         return None
     vec = struct.unpack_from("<3d", raw, base + 8 * (13 if gyro else 25))
-    return sec * 1_000_000_000 + nsec, vec
+    return stamp_ns(sec, nsec), vec
 
 
-def _stamp_ns(stamp: Any) -> int:
-    nsec = getattr(stamp, "nanosec", None)
-    if nsec is None:
-        nsec = stamp.nsec
-    return int(stamp.sec) * 1_000_000_000 + int(nsec)
+def _index_hint(path: Path) -> str:
+    return (
+        f"rebuild the index with `rosbag reindex {path.name}` (ROS1 tools; the original is "
+        "kept as .orig.bag), or open the recording in RealSense Viewer and save it again"
+    )
+
+
+class RosBag:
+    """An open ROS1 bag: topics, message references, positioned reads and decoding.
+
+    Args:
+        path: the ``.bag`` file.
+        src: how errors name the file (default: ``str(path)``).
+
+    Raises:
+        SessionError: not a ROS1 bag, no index (recording cut off), damaged index or chunks,
+            no messages at all.
+
+    The object pickles (file handles are reopened in the new process), so readers built on
+    it can be sent to worker processes.
+    """
+
+    def __init__(self, path: str | Path, src: str | None = None) -> None:
+        from rosbags.rosbag1 import Reader
+
+        self.path = Path(path)
+        self.src = src or str(self.path)
+        try:
+            reader = Reader(self.path)
+            reader.open()
+        except PermissionError as exc:
+            raise SessionError(f"{self.src}: cannot open the bag ({exc.strerror})") from None
+        except Exception as exc:
+            why = " ".join(str(exc).split()) or type(exc).__name__
+            if "not indexed" in why:
+                raise SessionError(
+                    f"{self.src}: the bag has no index (was the recording cut off?); "
+                    + _index_hint(self.path)
+                ) from None
+            if "index" in why.lower() or isinstance(exc, (EOFError, struct.error)):
+                raise SessionError(
+                    f"{self.src}: the bag's index is damaged or the file is truncated ({why}); "
+                    + _index_hint(self.path)
+                ) from None
+            raise SessionError(f"{self.src}: not a readable ROS1 bag ({why})") from None
+        try:
+            self.topics: dict[str, list[int]] = {}
+            defs: dict[int, tuple[str, str]] = {}
+            for conn in reader.connections:
+                self.topics.setdefault(conn.topic, []).append(conn.id)
+                defs[conn.id] = (conn.msgtype, conn.msgdef.data)
+            # rosbags' per-connection index lists (time, chunk_pos, offset), kept as they are;
+            # MessageRef objects are made only for the topics that are read.
+            self._index = {cid: list(idx) for cid, idx in reader.indexes.items()}
+            chunk_positions = [info.pos for info in reader.chunk_infos]
+        finally:
+            reader.close()
+        if not any(self._index.values()):
+            raise SessionError(f"{self.src}: the bag contains no messages")
+        self._records = _Records(self.path, self.src)
+        try:
+            self._records.chunks = {p: self._records.scan_chunk(p) for p in chunk_positions}
+        except (_DamagedError, struct.error) as exc:
+            raise SessionError(f"{self.src}: bag data looks damaged ({exc})") from None
+        self._types = _Types(defs, self.src)
+
+    def count(self, topic: str) -> int:
+        """Number of messages on ``topic`` (0 if absent)."""
+        return sum(len(self._index.get(cid, ())) for cid in self.topics.get(topic, ()))
+
+    def refs(self, topic: str) -> list[MessageRef]:
+        """Where the messages on ``topic`` lie, in record-time order (ties: file order)."""
+        out: list[MessageRef] = []
+        for cid in self.topics.get(topic, []):
+            out.extend(MessageRef(e[0], e[1], e[2], cid) for e in self._index.get(cid, ()))
+        out.sort(key=lambda e: (e.time, e.chunk_pos, e.offset))
+        return out
+
+    def keep_only(self, topics: set[str]) -> None:
+        """Forget the index of every other topic (memory: long recordings have millions)."""
+        keep = {cid for t in topics for cid in self.topics.get(t, ())}
+        self._index = {cid: idx for cid, idx in self._index.items() if cid in keep}
+
+    def read(self, ref: MessageRef, limit: int | None = None) -> bytes:
+        """The serialized message at ``ref`` (only its first ``limit`` bytes when given)."""
+        return self._records.message(ref, limit)[0]
+
+    def read_head(self, ref: MessageRef, limit: int) -> tuple[bytes, int]:
+        """The first ``limit`` bytes of the message at ``ref`` and its full length in bytes."""
+        return self._records.message(ref, limit)
+
+    def decode(self, ref: MessageRef, topic: str, raw: bytes | None = None) -> Any:
+        """Deserialize the message at ``ref`` (or its already read bytes ``raw``)."""
+        if raw is None:
+            raw = self.read(ref)
+        return self._types.decode(ref.conn, raw, topic)
+
+    def decode_all(self, topic: str) -> list[Any]:
+        """Every message on a (small, static) topic, decoded, in record-time order."""
+        return [self.decode(ref, topic) for ref in self.refs(topic)]
+
+    def msgtype(self, conn: int) -> str:
+        """The (normalized) message type of a connection, e.g. ``sensor_msgs/msg/Image``."""
+        return self._types.defs[conn][0]
+
+    def is_standard(self, conn: int, msgtype: str) -> bool:
+        """Whether ``conn`` carries ``msgtype`` exactly as ROS1 Noetic defines it."""
+        return self._types.is_standard(conn, msgtype)
+
+    def header_first(self, conn: int) -> bool:
+        """Whether messages of ``conn`` start with a ROS1 ``Header`` (seq, stamp, …)."""
+        return self._types.header_first(conn)
+
+    def close(self) -> None:
+        """Close the file handle (reopened automatically by the next read)."""
+        self._records.close()

@@ -15,7 +15,13 @@ from pathlib import Path
 import numpy as np
 
 from gaitnet.errors import SessionError
-from gaitnet.io.types import T_NS_MAX, ImuSamples
+from gaitnet.io.types import (
+    IMU_ACCEL_LIMIT_MS2,
+    IMU_GYRO_LIMIT_RADS,
+    T_NS_MAX,
+    ImuSamples,
+    implausible_imu,
+)
 
 log = logging.getLogger(__name__)
 
@@ -40,7 +46,10 @@ def validate_imu(
     gap_error_s: float = 1.0,
     first_line: int | None = None,
 ) -> None:
-    """Check ordering, finiteness and gaps of an IMU stream; ``source`` names it in errors.
+    """Check ordering, finiteness, range and gaps of an IMU stream; ``source`` names it.
+
+    Range: values beyond :data:`~gaitnet.io.types.IMU_ACCEL_LIMIT_MS2` or
+    :data:`~gaitnet.io.types.IMU_GYRO_LIMIT_RADS` are impossible for the sensor (damaged data).
 
     With ``first_line`` (the file line of sample 0), errors name file lines, not sample indices.
     """
@@ -55,6 +64,13 @@ def validate_imu(
     if bad.any():
         row = int(np.flatnonzero(bad)[0])
         raise SessionError(f"{source}: non-finite IMU value at {where(row)} (t_ns={int(t[row])})")
+    wild = implausible_imu(imu.accel, imu.gyro)
+    if wild.any():
+        row = int(np.flatnonzero(wild)[0])
+        raise SessionError(
+            f"{source}: impossible IMU value at {where(row)} (t_ns={int(t[row])}): beyond "
+            f"±{IMU_ACCEL_LIMIT_MS2:.0f} m/s² or ±{IMU_GYRO_LIMIT_RADS:.1f} rad/s"
+        )
     dt = np.diff(t)
     if (dt <= 0).any():
         k = int(np.flatnonzero(dt <= 0)[0])

@@ -18,7 +18,11 @@ import logging
 import numpy as np
 
 from gaitnet.errors import SessionError
-from gaitnet.io.types import ImuSamples
+from gaitnet.io.types import (
+    IMU_ACCEL_LIMIT_MS2,
+    IMU_GYRO_LIMIT_RADS,
+    ImuSamples,
+)
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +48,14 @@ def _clean_stream(
         k = int(np.flatnonzero(bad)[0])
         raise SessionError(
             f"{source}: {int(bad.sum())} non-finite {name} sample(s), the first at t_ns={int(t[k])}"
+        )
+    limit = IMU_GYRO_LIMIT_RADS if name == "gyroscope" else IMU_ACCEL_LIMIT_MS2
+    wild = (np.abs(v) > limit).any(axis=1)
+    if wild.any():
+        k = int(np.flatnonzero(wild)[0])
+        raise SessionError(
+            f"{source}: {int(wild.sum())} impossible {name} sample(s) (beyond ±{limit:.1f} SI "
+            f"units), the first at t_ns={int(t[k])}: damaged data"
         )
     order = np.argsort(t, kind="stable")
     t, v = t[order], v[order]
@@ -101,8 +113,10 @@ def merge_imu_streams(
     after the last accelerometer sample are dropped (extrapolation is not done).
 
     Raises:
-        SessionError: an empty stream, non-finite values, malformed arrays, or no gyro sample
-            inside the accelerometer's time span.
+        SessionError: an empty stream, non-finite values, values beyond what the sensor can
+            measure (:data:`~gaitnet.io.types.IMU_ACCEL_LIMIT_MS2`,
+            :data:`~gaitnet.io.types.IMU_GYRO_LIMIT_RADS`), malformed arrays, or no gyro
+            sample inside the accelerometer's time span.
     """
     t_a, a = _clean_stream(t_acc_ns, acc, "accelerometer", source)
     t_g, g = _clean_stream(t_gyr_ns, gyr, "gyroscope", source)

@@ -8,50 +8,65 @@ the IMU on ``sensor_2``)::
                                                        re-recorded with ROS tools: tolerated)
     /device_<d>/info                                   diagnostic_msgs/KeyValue (Name, serial …)
     /device_<d>/sensor_<s>/<Stream>_<i>/image/data     sensor_msgs/Image     (Depth, Color)
+    /device_<d>/sensor_<s>/<Stream>_<i>/image/metadata diagnostic_msgs/KeyValue per frame
     /device_<d>/sensor_<s>/<Stream>_<i>/imu/data       sensor_msgs/Imu       (Accel, Gyro)
+    /device_<d>/sensor_<s>/<Stream>_<i>/imu/metadata   diagnostic_msgs/KeyValue per sample
     /device_<d>/sensor_<s>/<Stream>_<i>/info           realsense_msgs/StreamInfo (fps, …)
     /device_<d>/sensor_<s>/<Stream>_<i>/info/camera_info  sensor_msgs/CameraInfo
     /device_<d>/sensor_<s>/<Stream>_<i>/imu_intrinsic  realsense_msgs/ImuIntrinsic
     /device_<d>/sensor_<s>/<Stream>_<i>/tf/<group>     geometry_msgs/Transform (extrinsic)
     /device_<d>/sensor_<s>/option/<Option Name>/value  std_msgs/Float32 (e.g. "Depth Units")
 
-Messages are deserialized with ``rosbags``; every message type is registered from the bag's own
-message definitions (``connection.msgdef``), so the SDK's ``realsense_msgs/*`` types work.
+The file itself (index, positioned reads, decoding with the bag's own message definitions) is
+:class:`gaitnet.io.bag_index.RosBag`; image messages become arrays in
+:mod:`gaitnet.io.ros_image`; extrinsics and IMU noise are read as documented in
+:mod:`gaitnet.io.realsense_extrinsics`; depth is re-projected by
+:func:`gaitnet.io.depth_align.align_depth_to_color`. This module maps the SDK's layout onto a
+session.
 
 Timestamps
     A frame's ``t_ns`` is the colour image's ``header.stamp`` (the SDK writes the device frame
     timestamp there; the bag's own record time is the host capture time since the recording
-    started and is not used). IMU samples use their ``header.stamp`` too.
+    started and is not used). IMU samples use their ``header.stamp`` too. Every stamp must
+    stay within :data:`STAMP_RECORD_TOLERANCE_S` of where its record time puts it (header
+    stamp minus record time is a constant offset up to USB latency), which catches damaged
+    stamps; frames a little out of order are sorted with a warning.
+
+Timestamp domain (**refused when they differ**)
+    The SDK stores each frame's clock in its metadata (key ``timestamp_domain``: ``Hardware
+    Clock``, ``System Time`` or ``Global Time``). Frames and IMU samples stamped by different
+    clocks cannot be synchronised (the offset between them is arbitrary), so a bag whose colour,
+    depth, accelerometer and gyro streams report different domains — or a stream that changes
+    domain during the recording — is refused with a :class:`SessionError` naming the domains.
+    Record again with one clock for all sensors (e.g. enable "Global Time" on every sensor in
+    RealSense Viewer). A bag without metadata (re-recorded with ROS tools) is accepted with an
+    info message; the domain found is stored in ``extra["timestamp_domain"]``.
 
 Laziness
-    Opening reads the bag index (via ``rosbags``), the few static messages (calibration,
-    options), and the first 12 bytes of every image message's payload (its header stamp; for
-    uncompressed chunks these are small positioned reads, compressed chunks are decompressed
-    once each). :meth:`RealSenseBag.frame` reads and decodes just the two messages of that
-    frame by their byte position (no scan of the bag). The IMU is read on first access to
+    Opening reads the bag index, the few static messages (calibration, options), a few
+    metadata messages per stream, and the first bytes of every image message (its header:
+    stamp, size, encoding, step, data length); for uncompressed chunks these are small
+    positioned reads, compressed chunks are decompressed once each. :meth:`RealSenseBag.frame`
+    reads and decodes just the two messages of that frame. The IMU is read on first access to
     :attr:`RealSenseBag.imu`.
 
 Frames
     Colour and depth frames are paired by nearest header stamp; pairs further apart than half
     the colour frame period are dropped with a warning. ``rgb`` is uint8 RGB (``rgb8``,
     ``bgr8``, ``rgba8``, ``bgra8`` accepted); ``depth_m`` is float32 metres (``mono16`` /
-    ``16UC1`` times the "Depth Units" option, default 0.001 m; ``32FC1`` is taken as metres),
-    0 = invalid, always aligned to colour: a depth image of colour's size whose camera_info
-    equals colour's is taken as aligned already, otherwise it is aligned here with
-    :func:`align_depth_to_color`. The calibration therefore describes the delivered data:
-    ``depth`` intrinsics are the colour intrinsics and ``depth_aligned_to_color`` is True; the
-    bag's own depth intrinsics are in ``extra["bag_depth_intrinsics"]``.
+    ``16UC1`` times the "Depth Units" option, default 0.001 m, with 65535 = no data; ``32FC1``
+    is taken as metres), 0 = invalid, always aligned to colour: a depth image of colour's size
+    whose camera_info equals colour's is taken as aligned already, otherwise it is aligned
+    here. The calibration therefore describes the delivered data: ``depth`` intrinsics are the
+    colour intrinsics and ``depth_aligned_to_color`` is True; the bag's own depth intrinsics
+    are in ``extra["bag_depth_intrinsics"]``. Every frame of a stream must have the size,
+    encoding and row step of the first and exactly ``step · height`` bytes of pixels: checked
+    for all frames at open (from the image headers) and again when a frame is decoded.
 
-Extrinsics and IMU noise
-    How the SDK's ``tf`` extrinsics are read (``tf_convention``: :data:`TF_REF_TO_STREAM` or
-    :data:`TF_STREAM_TO_REF`) and how ``imu_intrinsic`` variances become
-    :class:`~gaitnet.io.types.ImuNoise` is documented in :mod:`gaitnet.io.realsense_extrinsics`.
-
-Module layout: low-level bag reads are in :mod:`gaitnet.io.bag_index`, depth re-projection in
-:mod:`gaitnet.io.depth_align`; their public names are re-exported here.
-
-Errors (a missing colour, depth or IMU topic, an empty bag, a file that is not a bag or is
-truncated, an unsupported image encoding, damaged records) raise :class:`SessionError` with a
+Errors (a missing colour, depth or IMU topic, an empty, unindexed or truncated bag, a file
+that is not a bag, an unsupported image encoding, frames whose size changes, NaN or a
+non-rigid transform in the tf, non-finite calibration values, damaged stamps or records,
+mixed timestamp domains, physically impossible IMU values) raise :class:`SessionError` with a
 one-line message that names the bag file.
 """
 
@@ -60,7 +75,6 @@ from __future__ import annotations
 import logging
 import math
 import re
-import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -69,24 +83,25 @@ from typing import Any
 import numpy as np
 
 from gaitnet.errors import SessionError
-from gaitnet.io.bag_index import (
-    _DamagedError,
-    _Entry,
-    _parse_imu,
-    _Records,
-    _stamp_ns,
-    _Types,
-)
+from gaitnet.io.bag_index import MessageRef, RosBag, parse_imu_payload, stamp_ns
 from gaitnet.io.depth_align import align_depth_to_color
 from gaitnet.io.imu_merge import merge_imu_streams
 from gaitnet.io.realsense_extrinsics import (
     TF_REF_TO_STREAM,
     TF_STREAM_TO_REF,
     imu_noise_from_intrinsics,
-    invert_rigid,
-    quaternion_to_matrix,
     relative_extrinsic,
     transform_to_matrix,
+)
+from gaitnet.io.ros_image import (
+    HEAD_BYTES,
+    ImageHead,
+    check_layout,
+    color_format,
+    decode_color,
+    decode_depth,
+    depth_format,
+    parse_image_head,
 )
 from gaitnet.io.types import (
     CameraIntrinsics,
@@ -94,23 +109,23 @@ from gaitnet.io.types import (
     ImuNoise,
     ImuSamples,
     SessionCalibration,
+    rigid_transform,
 )
 
 __all__ = [
     "DEFAULT_DEPTH_UNITS_M",
+    "STAMP_RECORD_TOLERANCE_S",
     "TF_REF_TO_STREAM",
     "TF_STREAM_TO_REF",
     "RealSenseBag",
-    "align_depth_to_color",
-    "invert_rigid",
-    "quaternion_to_matrix",
-    "relative_extrinsic",
-    "transform_to_matrix",
 ]
 
 log = logging.getLogger(__name__)
 
 DEFAULT_DEPTH_UNITS_M = 0.001
+STAMP_RECORD_TOLERANCE_S = 1.0
+"""How far (s) a header stamp may stray from the offset its record time implies."""
+_METADATA_PROBE = 64  # metadata messages read at each end of a stream to find its domain
 
 _DATA_TOPIC = re.compile(
     r"^/device_(\d+)/sensor_(\d+)/(Depth|Color|Accel|Gyro)_(\d+)/(image|imu)/data$"
@@ -122,14 +137,8 @@ _KIND_NAME = {
     "Accel": "accelerometer",
     "Gyro": "gyroscope",
 }
-
-_COLOR_ENCODINGS = {  # encoding -> (channels, indices of R, G, B)
-    "rgb8": (3, (0, 1, 2)),
-    "bgr8": (3, (2, 1, 0)),
-    "rgba8": (4, (0, 1, 2)),
-    "bgra8": (4, (2, 1, 0)),
-}
-_DEPTH_ENCODINGS = {"mono16": "u2", "16uc1": "u2", "32fc1": "f4"}
+_IMAGE_TYPE = "sensor_msgs/msg/Image"
+_IMU_TYPE = "sensor_msgs/msg/Imu"
 
 
 @dataclass(frozen=True)
@@ -147,17 +156,9 @@ class _Stream:
     def data_topic(self) -> str:
         return f"{self.prefix}/{_KIND_TO_MEDIUM[self.kind]}/data"
 
-
-def _intrinsics_dict(c: CameraIntrinsics) -> dict:
-    return {
-        "width": int(c.width),
-        "height": int(c.height),
-        "fx": float(c.fx),
-        "fy": float(c.fy),
-        "cx": float(c.cx),
-        "cy": float(c.cy),
-        "distortion": [float(d) for d in c.distortion],
-    }
+    @property
+    def metadata_topic(self) -> str:
+        return f"{self.prefix}/{_KIND_TO_MEDIUM[self.kind]}/metadata"
 
 
 def _nominal_float32(value: float) -> float:
@@ -165,9 +166,10 @@ def _nominal_float32(value: float) -> float:
     return float(f"{float(np.float32(value)):.7g}")
 
 
-# --------------------------------------------------------------------------------------------
-# The reader
-# --------------------------------------------------------------------------------------------
+def _header_stamp(msg: Any) -> int:
+    stamp = msg.header.stamp
+    nsec = getattr(stamp, "nanosec", None)
+    return stamp_ns(stamp.sec, stamp.nsec if nsec is None else nsec)
 
 
 class RealSenseBag:
@@ -193,6 +195,8 @@ class RealSenseBag:
     ) -> None:
         if tf_convention not in (TF_REF_TO_STREAM, TF_STREAM_TO_REF):
             raise ValueError(f"unknown tf convention {tf_convention!r}")
+        if T_CfromI is not None:
+            T_CfromI = rigid_transform(T_CfromI, "T_CfromI")
         self.path = Path(path)
         self._src = str(self.path)
         self._imu_gap_warn_s = float(imu_gap_warn_s)
@@ -200,11 +204,11 @@ class RealSenseBag:
         self._imu: ImuSamples | None = None
         if not self.path.is_file():
             raise SessionError(f"{self._src}: bag file not found")
-        self._records = _Records(self.path, self._src)
+        self._bag = RosBag(self.path, self._src)
         try:
             self._open(T_CfromI)
         except BaseException:
-            self._records.close()
+            self._bag.close()
             raise
 
     # -- SessionSource --------------------------------------------------------------------
@@ -231,8 +235,8 @@ class RealSenseBag:
         if not -n <= index < n:
             raise IndexError(f"frame {index} out of range (bag has {n})")
         index %= n
-        rgb = self._decode_color(self._color_entries[index])
-        depth_m = self._decode_depth(self._depth_entries[index])
+        rgb = self._decode_color(index)
+        depth_m = self._decode_depth(index)
         if not self._depth_aligned:
             depth_m = align_depth_to_color(
                 depth_m, self._bag_depth_intr, self._calib.color, self._T_CfromD
@@ -247,7 +251,7 @@ class RealSenseBag:
 
     def close(self) -> None:
         """Close the file handle (reopened automatically if frames are read later)."""
-        self._records.close()
+        self._bag.close()
 
     def __enter__(self) -> RealSenseBag:
         return self
@@ -258,75 +262,31 @@ class RealSenseBag:
     def __repr__(self) -> str:
         return f"RealSenseBag({self._src!r}, frames={len(self)})"
 
+    def _error(self, what: str) -> SessionError:
+        return SessionError(f"{self._src}: {what}")
+
     # -- opening --------------------------------------------------------------------------
 
     def _open(self, T_CfromI_override: np.ndarray | None) -> None:
-        self._read_index()
         self._find_streams()
         statics = self._read_static()
+        domain = self._timestamp_domain()
         self._build_frame_index(statics)
-        self._calib = self._build_calibration(statics, T_CfromI_override)
+        self._calib = self._build_calibration(statics, T_CfromI_override, domain)
         self._check_first_frame()
         # Keep only the index of what is read later (the IMU, on first access).
-        keep = {c for s in (self._accel, self._gyro) for c in self._topics[s.data_topic]}
-        self._index = {cid: idx for cid, idx in self._index.items() if cid in keep}
-
-    def _read_index(self) -> None:
-        from rosbags.rosbag1 import Reader
-
-        try:
-            reader = Reader(self.path)
-            reader.open()
-        except Exception as exc:
-            why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise SessionError(f"{self._src}: not a readable ROS1 bag ({why})") from None
-        try:
-            topics: dict[str, list[int]] = {}
-            defs: dict[int, tuple[str, str]] = {}
-            for conn in reader.connections:
-                topics.setdefault(conn.topic, []).append(conn.id)
-                defs[conn.id] = (conn.msgtype, conn.msgdef.data)
-            # rosbags' per-connection index lists (time, chunk_pos, offset), kept as they are;
-            # _Entry objects are made only for the topics that are read.
-            index = {cid: list(idx) for cid, idx in reader.indexes.items()}
-            chunk_positions = [info.pos for info in reader.chunk_infos]
-        finally:
-            reader.close()
-        if not any(index.values()):
-            raise SessionError(f"{self._src}: the bag contains no messages")
-        try:
-            self._records.chunks = {p: self._records.scan_chunk(p) for p in chunk_positions}
-        except (_DamagedError, struct.error) as exc:
-            raise SessionError(f"{self._src}: bag data looks damaged ({exc})") from None
-        self._topics = topics
-        self._index = index
-        self._types = _Types(defs, self._src)
-
-    def _topic_entries(self, topic: str) -> list[_Entry]:
-        out: list[_Entry] = []
-        for cid in self._topics.get(topic, []):
-            out.extend(_Entry(e[0], e[1], e[2], cid) for e in self._index.get(cid, ()))
-        out.sort(key=lambda e: (e.time, e.chunk_pos, e.offset))
-        return out
-
-    def _read_topic(self, topic: str) -> list[Any]:
-        """Decode every message on a (small, static) topic, in record-time order."""
-        return [
-            self._types.decode(e.conn, self._records.message(e), topic)
-            for e in self._topic_entries(topic)
-        ]
+        self._bag.keep_only({self._accel.data_topic, self._gyro.data_topic})
 
     def _find_streams(self) -> None:
         found: dict[str, list[_Stream]] = {k: [] for k in _KIND_TO_MEDIUM}
-        for topic in self._topics:
+        for topic in self._bag.topics:
             m = _DATA_TOPIC.match(topic)
-            if m and _KIND_TO_MEDIUM[m.group(3)] == m.group(5):
+            if m and _KIND_TO_MEDIUM[m.group(3)] == m.group(5) and self._bag.count(topic):
                 s = _Stream(m.group(3), int(m.group(1)), int(m.group(2)), int(m.group(4)))
-                if any(self._index.get(cid) for cid in self._topics[topic]):
-                    found[s.kind].append(s)
+                found[s.kind].append(s)
         if not found["Color"]:
-            raise SessionError(
-                f"{self._src}: no colour image topic with messages "
+            raise self._error(
+                "no colour image topic with messages "
                 "(expected /device_*/sensor_*/Color_*/image/data)"
             )
         color = min(found["Color"], key=lambda s: (s.device, s.index, s.sensor))
@@ -334,8 +294,8 @@ class RealSenseBag:
         for kind in ("Depth", "Accel", "Gyro"):
             same = [s for s in found[kind] if s.device == color.device]
             if not same:
-                raise SessionError(
-                    f"{self._src}: no {_KIND_NAME[kind]} topic with messages for device "
+                raise self._error(
+                    f"no {_KIND_NAME[kind]} topic with messages for device "
                     f"{color.device} (expected /device_{color.device}/sensor_*/{kind}_*/"
                     f"{_KIND_TO_MEDIUM[kind]}/data)"
                 )
@@ -354,39 +314,37 @@ class RealSenseBag:
 
     def _read_static(self) -> dict[str, Any]:
         statics: dict[str, Any] = {}
-        versions = self._read_topic("/file_version")
+        versions = self._bag.decode_all("/file_version")
         statics["file_version"] = int(versions[0].data) if versions else None
         if not versions:
             log.debug("%s: no /file_version (bag not written by the RealSense SDK?)", self._src)
 
         info: dict[str, str] = {}
-        for msg in self._read_topic(f"/device_{self._color.device}/info"):
+        for msg in self._bag.decode_all(f"/device_{self._color.device}/info"):
             key, value = getattr(msg, "key", None), getattr(msg, "value", None)
             if isinstance(key, str) and isinstance(value, str):
                 info.setdefault(key, value)
         statics["device_info"] = info
 
         for s in (self._color, self._depth, self._accel, self._gyro):
-            cams = self._read_topic(f"{s.prefix}/info/camera_info")
+            cams = self._bag.decode_all(f"{s.prefix}/info/camera_info")
             statics[f"camera_info/{s.kind}"] = cams[0] if cams else None
-            imu_intr = self._read_topic(f"{s.prefix}/imu_intrinsic")
+            imu_intr = self._bag.decode_all(f"{s.prefix}/imu_intrinsic")
             statics[f"imu_intrinsic/{s.kind}"] = imu_intr[0] if imu_intr else None
-            stream_info = self._read_topic(f"{s.prefix}/info")
+            stream_info = self._bag.decode_all(f"{s.prefix}/info")
             statics[f"stream_info/{s.kind}"] = stream_info[0] if stream_info else None
             tfs: dict[str, np.ndarray] = {}
             tf_pattern = re.compile(re.escape(s.prefix) + r"/tf/([^/]+)$")
-            for topic in sorted(self._topics):
+            for topic in sorted(self._bag.topics):
                 m = tf_pattern.match(topic)
                 if not m:
                     continue
-                msgs = self._read_topic(topic)
+                msgs = self._bag.decode_all(topic)
                 if msgs:
                     try:
-                        tfs[m.group(1)] = transform_to_matrix(msgs[0])
-                    except (ValueError, AttributeError) as exc:
-                        raise SessionError(
-                            f"{self._src}: bad extrinsic on {topic} ({exc})"
-                        ) from None
+                        tfs[m.group(1)] = rigid_transform(transform_to_matrix(msgs[0]), "tf")
+                    except (ValueError, AttributeError, TypeError) as exc:
+                        raise self._error(f"bad extrinsic on {topic} ({exc})") from None
             statics[f"tf/{s.kind}"] = tfs
 
         statics["depth_units"] = self._depth_units_m = self._depth_units()
@@ -397,14 +355,14 @@ class RealSenseBag:
         d, s = self._depth.device, self._depth.sensor
         topics = [f"/device_{d}/sensor_{s}/option/{name}/value"]
         pattern = re.compile(rf"^/device_{d}/sensor_\d+/option/{re.escape(name)}/value$")
-        topics += sorted(t for t in self._topics if pattern.match(t) and t not in topics)
+        topics += sorted(t for t in self._bag.topics if pattern.match(t) and t not in topics)
         for topic in topics:
-            values = [float(m.data) for m in self._read_topic(topic)]
+            values = [float(m.data) for m in self._bag.decode_all(topic)]
             if not values:
                 continue
             value = values[0]
             if not math.isfinite(value) or value <= 0:
-                raise SessionError(f"{self._src}: invalid depth units {value!r} on {topic}")
+                raise self._error(f"invalid depth units {value!r} on {topic}")
             if any(v != value for v in values[1:]):
                 log.warning(
                     "%s: depth units change during the recording (%s), using the first",
@@ -415,59 +373,175 @@ class RealSenseBag:
         log.info("%s: no '%s' option, assuming %g m", self._src, name, DEFAULT_DEPTH_UNITS_M)
         return DEFAULT_DEPTH_UNITS_M
 
-    def _stamps(self, entries: list[_Entry], topic: str) -> np.ndarray:
-        """Header stamps of messages, reading only the first bytes of each payload."""
-        stamps = np.zeros(len(entries), dtype=np.int64)
-        order = sorted(range(len(entries)), key=lambda k: (entries[k].chunk_pos, entries[k].offset))
+    # -- timestamp domain -----------------------------------------------------------------
+
+    def _domains_of(self, stream: _Stream) -> list[str]:
+        """Timestamp domains named in the first and last metadata messages of a stream."""
+        topic = stream.metadata_topic
+        refs = self._bag.refs(topic)
+        found: list[str] = []
+        for probe in (refs[:_METADATA_PROBE], refs[::-1][:_METADATA_PROBE]):
+            for ref in probe:
+                msg = self._bag.decode(ref, topic)
+                if getattr(msg, "key", None) == "timestamp_domain":
+                    found.append(str(getattr(msg, "value", "")))
+                    break
+        return found
+
+    def _timestamp_domain(self) -> str | None:
+        """The one clock of all four streams (module docstring); refuses mixed clocks."""
+        domains: dict[str, str] = {}
+        for s in (self._color, self._depth, self._accel, self._gyro):
+            found = self._domains_of(s)
+            if len(set(found)) > 1:
+                raise self._error(
+                    f"the {_KIND_NAME[s.kind]} timestamps change clock during the recording "
+                    f"({found[0]!r} → {found[-1]!r}); they cannot be synchronised"
+                )
+            if found:
+                domains[s.kind] = found[0]
+        if not domains:
+            log.info("%s: no timestamp domain metadata; assuming one clock", self._src)
+            return None
+        if len(set(domains.values())) > 1:
+            listed = ", ".join(f"{_KIND_NAME[k]} {v!r}" for k, v in domains.items())
+            raise self._error(
+                f"streams are stamped by different clocks ({listed}) and cannot be "
+                "synchronised; record with one clock for all sensors (e.g. enable "
+                "'Global Time' on every sensor)"
+            )
+        missing = [_KIND_NAME[s] for s in ("Color", "Depth", "Accel", "Gyro") if s not in domains]
+        if missing:
+            log.warning(
+                "%s: no timestamp domain for the %s stream(s); assuming %r like the others",
+                self._src,
+                ", ".join(missing),
+                next(iter(domains.values())),
+            )
+        return next(iter(domains.values()))
+
+    # -- frame index ----------------------------------------------------------------------
+
+    def _heads(self, refs: list[MessageRef], stream: _Stream) -> list[ImageHead]:
+        """The header fields of every image message (only their first bytes are read)."""
+        topic = stream.data_topic
+        heads: list[ImageHead | None] = [None] * len(refs)
+        order = sorted(range(len(refs)), key=lambda k: (refs[k].chunk_pos, refs[k].offset))
         fast: dict[int, bool] = {}
         for k in order:
-            e = entries[k]
-            if e.conn not in fast:
-                fast[e.conn] = self._types.header_first(e.conn)
-            if fast[e.conn]:
-                head = self._records.message(e, limit=12)
-                if len(head) < 12:
-                    raise SessionError(f"{self._src}: truncated message on {topic}")
-                _, sec, nsec = struct.unpack("<III", head)
-                stamps[k] = sec * 1_000_000_000 + nsec
+            ref = refs[k]
+            if ref.conn not in fast:
+                fast[ref.conn] = self._bag.is_standard(ref.conn, _IMAGE_TYPE)
+            try:
+                if fast[ref.conn]:
+                    raw, total = self._bag.read_head(ref, HEAD_BYTES)
+                    head = parse_image_head(raw)
+                    if head is None:
+                        raise ValueError(f"message of {total} bytes is too short for an image")
+                    if head.payload_len != total:
+                        raise ValueError(
+                            f"message is {total} bytes but its fields describe "
+                            f"{head.payload_len} ({head.data_len} bytes of pixels)"
+                        )
+                else:
+                    msg = self._bag.decode(ref, topic)
+                    head = ImageHead(
+                        _header_stamp(msg),
+                        int(msg.height),
+                        int(msg.width),
+                        str(msg.encoding),
+                        bool(msg.is_bigendian),
+                        int(msg.step),
+                        len(msg.data),
+                        0,
+                    )
+            except ValueError as exc:
+                what = f"{_KIND_NAME[stream.kind]} message {k} on {topic}"
+                raise self._error(f"{what}: {exc}") from None
+            heads[k] = head
+        return heads  # type: ignore[return-value]
+
+    def _check_stamps(self, t: np.ndarray, record: np.ndarray, what: str) -> None:
+        """Header stamps must follow the record times (damaged stamps are refused)."""
+        if t.shape[0] == 0:
+            return
+        offset = t - record
+        median = int(np.median(offset))
+        off = np.abs(offset - median) > STAMP_RECORD_TOLERANCE_S * 1e9
+        if off.any():
+            k = int(np.flatnonzero(off)[0])
+            raise self._error(
+                f"{what} {k} has header stamp {int(t[k])} ns, {(offset[k] - median) * 1e-9:+.3f} "
+                f"s away from where its record time puts it (damaged stamps?)"
+            )
+
+    def _check_layouts(self, heads: list[ImageHead], stream: _Stream) -> None:
+        what = _KIND_NAME[stream.kind]
+        first = heads[0]
+        try:
+            if stream.kind == "Color":
+                channels, itemsize = color_format(first.encoding)[0], 1
             else:
-                msg = self._types.decode(e.conn, self._records.message(e), topic)
-                stamps[k] = _stamp_ns(msg.header.stamp)
-        return stamps
+                channels, itemsize = 1, depth_format(first.encoding, first.is_bigendian).itemsize
+        except ValueError as exc:
+            raise self._error(f"{exc} on {stream.data_topic}") from None
+        for k, head in enumerate(heads):
+            if head.layout() != first.layout():
+                raise self._error(
+                    f"{what} frame {k} (t_ns={head.t_ns}) is {head.width}×{head.height} "
+                    f"{head.encoding} (step {head.step}) but frame 0 is {first.width}×"
+                    f"{first.height} {first.encoding} (step {first.step}); frames may not "
+                    "change size or format"
+                )
+            try:
+                check_layout(head, channels, itemsize)
+            except ValueError as exc:
+                raise self._error(f"{what} frame {k} (t_ns={head.t_ns}): {exc}") from None
 
     def _stream_fps(self, statics: dict[str, Any], stream: _Stream) -> float | None:
         info = statics.get(f"stream_info/{stream.kind}")
         fps = getattr(info, "fps", None) if info is not None else None
         if fps is not None and float(fps) > 0:
             return float(fps)
-        times = np.array([e.time for e in self._topic_entries(stream.data_topic)], dtype=np.int64)
+        times = np.array([e.time for e in self._bag.refs(stream.data_topic)], dtype=np.int64)
         dt = np.diff(np.unique(times))
         if dt.size:
             return 1e9 / float(np.median(dt))
         return None
 
+    def _sorted_frames(self, stream: _Stream) -> tuple[np.ndarray, list[MessageRef]]:
+        """Header stamps (increasing, unique) and references of one image stream."""
+        refs = self._bag.refs(stream.data_topic)
+        heads = self._heads(refs, stream)
+        self._check_layouts(heads, stream)
+        what = f"{_KIND_NAME[stream.kind]} frame"
+        t = np.array([h.t_ns for h in heads], dtype=np.int64)
+        self._check_stamps(t, np.array([r.time for r in refs], dtype=np.int64), what)
+        back = np.flatnonzero(np.diff(t) < 0)
+        if back.size:
+            log.warning(
+                "%s: %d %s(s) out of order by up to %.1f ms; sorted by header stamp",
+                self._src,
+                back.size,
+                what,
+                float(-np.diff(t).min()) * 1e-6,
+            )
+        order = np.argsort(t, kind="stable")
+        t = t[order]
+        keep = np.ones(t.shape[0], dtype=bool)
+        keep[1:] = t[1:] != t[:-1]
+        if (~keep).any():
+            log.warning(
+                "%s: dropped %d %s(s) with a repeated timestamp",
+                self._src,
+                int((~keep).sum()),
+                what,
+            )
+        return t[keep], [refs[i] for i in order[keep]]
+
     def _build_frame_index(self, statics: dict[str, Any]) -> None:
-        color_entries = self._topic_entries(self._color.data_topic)
-        depth_entries = self._topic_entries(self._depth.data_topic)
-        tc = self._stamps(color_entries, self._color.data_topic)
-        td = self._stamps(depth_entries, self._depth.data_topic)
-
-        def dedupe(t: np.ndarray, entries: list[_Entry], what: str):
-            order = np.argsort(t, kind="stable")
-            t = t[order]
-            keep = np.ones(t.shape[0], dtype=bool)
-            keep[1:] = t[1:] != t[:-1]
-            if (~keep).any():
-                log.warning(
-                    "%s: dropped %d %s frame(s) with a repeated timestamp",
-                    self._src,
-                    int((~keep).sum()),
-                    what,
-                )
-            return t[keep], [entries[i] for i in order[keep]]
-
-        tc, color_entries = dedupe(tc, color_entries, "colour")
-        td, depth_entries = dedupe(td, depth_entries, "depth")
+        tc, color_refs = self._sorted_frames(self._color)
+        td, depth_refs = self._sorted_frames(self._depth)
 
         if tc.shape[0] > 1:
             period_ns = float(np.median(np.diff(tc)))
@@ -501,31 +575,30 @@ class RealSenseBag:
                 tol_ns * 1e-6,
             )
         if color_idx.shape[0] == 0:
-            raise SessionError(
-                f"{self._src}: no colour frame has a depth frame within half a frame period"
-            )
+            raise self._error("no colour frame has a depth frame within half a frame period")
         self._times = tc[color_idx]
-        self._color_entries = [color_entries[i] for i in color_idx]
-        self._depth_entries = [depth_entries[int(match[i])] for i in color_idx]
+        self._color_refs = [color_refs[i] for i in color_idx]
+        self._depth_refs = [depth_refs[int(match[i])] for i in color_idx]
+
+    # -- calibration ----------------------------------------------------------------------
 
     def _intrinsics(self, msg: Any, topic: str) -> CameraIntrinsics:
-        K = np.asarray(msg.K if hasattr(msg, "K") else msg.k, dtype=np.float64).ravel()
-        D = np.asarray(msg.D if hasattr(msg, "D") else msg.d, dtype=np.float64).ravel()
-        width, height = int(msg.width), int(msg.height)
-        if K.shape != (9,) or not np.isfinite(K).all() or K[0] <= 0 or K[4] <= 0:
-            raise SessionError(f"{self._src}: invalid camera matrix on {topic}: {K.tolist()}")
-        if width <= 0 or height <= 0:
-            raise SessionError(f"{self._src}: invalid image size {width}×{height} on {topic}")
-        distortion = tuple(float(d) for d in D) if D.size else (0.0,) * 5
-        return CameraIntrinsics(
-            width=width,
-            height=height,
-            fx=float(K[0]),
-            fy=float(K[4]),
-            cx=float(K[2]),
-            cy=float(K[5]),
-            distortion=distortion,
-        )
+        try:
+            K = np.asarray(msg.K if hasattr(msg, "K") else msg.k, dtype=np.float64).ravel()
+            D = np.asarray(msg.D if hasattr(msg, "D") else msg.d, dtype=np.float64).ravel()
+            if K.shape != (9,):
+                raise ValueError(f"camera matrix has {K.size} values, expected 9")
+            return CameraIntrinsics(
+                width=int(msg.width),
+                height=int(msg.height),
+                fx=float(K[0]),
+                fy=float(K[4]),
+                cx=float(K[2]),
+                cy=float(K[5]),
+                distortion=tuple(float(d) for d in D) if D.size else (0.0,) * 5,
+            )
+        except ValueError as exc:
+            raise self._error(f"invalid camera_info on {topic}: {exc}") from None
 
     def _extrinsic(
         self, statics: dict[str, Any], target: _Stream, source: _Stream
@@ -539,12 +612,12 @@ class RealSenseBag:
         return None
 
     def _build_calibration(
-        self, statics: dict[str, Any], T_CfromI_override: np.ndarray | None
+        self, statics: dict[str, Any], T_CfromI_override: np.ndarray | None, domain: str | None
     ) -> SessionCalibration:
         color_topic = f"{self._color.prefix}/info/camera_info"
         depth_topic = f"{self._depth.prefix}/info/camera_info"
         if statics["camera_info/Color"] is None:
-            raise SessionError(f"{self._src}: no colour intrinsics ({color_topic} is missing)")
+            raise self._error(f"no colour intrinsics ({color_topic} is missing)")
         color = self._intrinsics(statics["camera_info/Color"], color_topic)
 
         if not statics["tf/Depth"]:
@@ -572,8 +645,8 @@ class RealSenseBag:
             log.warning("%s: no depth camera_info, assuming depth is aligned to colour", self._src)
             depth, aligned = color, True
         if not aligned and T_CfromD is None:
-            raise SessionError(
-                f"{self._src}: depth is not aligned to colour and the bag has no depth→colour "
+            raise self._error(
+                "depth is not aligned to colour and the bag has no depth→colour "
                 f"extrinsic (tf topics under {self._color.prefix} and {self._depth.prefix})"
             )
         self._bag_depth_intr = depth
@@ -581,15 +654,13 @@ class RealSenseBag:
         self._T_CfromD = T_CfromD if T_CfromD is not None else np.eye(4)
 
         if T_CfromI_override is not None:
-            T_CfromI = np.asarray(T_CfromI_override, dtype=np.float64)
-            if T_CfromI.shape != (4, 4):
-                raise ValueError(f"T_CfromI must be 4×4, got {T_CfromI.shape}")
+            T_CfromI = T_CfromI_override
         else:
             imu_stream = self._gyro if statics["tf/Gyro"] else self._accel
             T_CfromI = self._extrinsic(statics, self._color, imu_stream)
             if T_CfromI is None:
-                raise SessionError(
-                    f"{self._src}: no IMU→colour extrinsic (tf of {self._color.prefix} and of "
+                raise self._error(
+                    f"no IMU→colour extrinsic (tf of {self._color.prefix} and of "
                     f"{self._gyro.prefix} or {self._accel.prefix} in one group); pass T_CfromI"
                 )
             if statics["tf/Gyro"] and statics["tf/Accel"]:
@@ -614,8 +685,16 @@ class RealSenseBag:
             "file_version": statics["file_version"],
             "device_info": dict(info),
             "depth_aligned_in_bag": bool(aligned),
-            "bag_depth_intrinsics": _intrinsics_dict(depth),
-            "T_CfromD": [[float(v) for v in row] for row in self._T_CfromD],
+            "bag_depth_intrinsics": {
+                "width": depth.width,
+                "height": depth.height,
+                "fx": depth.fx,
+                "fy": depth.fy,
+                "cx": depth.cx,
+                "cy": depth.cy,
+                "distortion": list(depth.distortion),
+            },
+            "T_CfromD": self._T_CfromD.tolist(),
             "tf_convention": self._tf_convention,
             "topics": {
                 "color": self._color.data_topic,
@@ -624,16 +703,21 @@ class RealSenseBag:
                 "gyro": self._gyro.data_topic,
             },
         }
-        return SessionCalibration(
-            color=color,
-            depth=color,
-            depth_scale_m=statics["depth_units"],
-            depth_aligned_to_color=True,
-            T_CfromI=T_CfromI,
-            imu_noise=noise,
-            device=device,
-            extra=extra,
-        )
+        if domain is not None:
+            extra["timestamp_domain"] = domain
+        try:
+            return SessionCalibration(
+                color=color,
+                depth=color,
+                depth_scale_m=statics["depth_units"],
+                depth_aligned_to_color=True,
+                T_CfromI=T_CfromI,
+                imu_noise=noise,
+                device=device,
+                extra=extra,
+            )
+        except ValueError as exc:
+            raise self._error(f"invalid calibration: {exc}") from None
 
     def _imu_noise(
         self, acc_intr: Any, gyr_intr: Any, fps_acc: float | None, fps_gyr: float | None
@@ -644,97 +728,95 @@ class RealSenseBag:
         return noise
 
     def _check_first_frame(self) -> None:
-        rgb = self._decode_color(self._color_entries[0])
+        self._first_checked = False
+        rgb = self._decode_color(0)
         c = self._calib.color
         if rgb.shape[:2] != (c.height, c.width):
-            raise SessionError(
-                f"{self._src}: colour images are {rgb.shape[1]}×{rgb.shape[0]} but camera_info "
+            raise self._error(
+                f"colour images are {rgb.shape[1]}×{rgb.shape[0]} but camera_info "
                 f"says {c.width}×{c.height}"
             )
-        depth = self._decode_depth(self._depth_entries[0])
+        depth = self._decode_depth(0)
         d = self._bag_depth_intr
         if depth.shape != (d.height, d.width):
-            raise SessionError(
-                f"{self._src}: depth images are {depth.shape[1]}×{depth.shape[0]} but "
+            raise self._error(
+                f"depth images are {depth.shape[1]}×{depth.shape[0]} but "
                 f"{'camera_info' if not self._depth_aligned else 'colour'} says "
                 f"{d.width}×{d.height}"
             )
+        self._first_checked = True
 
     # -- decoding -------------------------------------------------------------------------
 
-    def _image_msg(self, entry: _Entry, topic: str) -> Any:
-        return self._types.decode(entry.conn, self._records.message(entry), topic)
+    def _decode(self, index: int, stream: _Stream) -> np.ndarray:
+        refs = self._color_refs if stream.kind == "Color" else self._depth_refs
+        topic = stream.data_topic
+        msg = self._bag.decode(refs[index], topic)
+        what = f"{_KIND_NAME[stream.kind]} of frame {index} (t_ns={int(self._times[index])})"
+        try:
+            if stream.kind == "Color":
+                image = decode_color(msg)
+            else:
+                image = decode_depth(msg, self._depth_units_m)
+        except ValueError as exc:
+            raise self._error(f"{what} on {topic}: {exc}") from None
+        if self._first_checked:  # every frame has the size of frame 0 (checked at open)
+            if stream.kind == "Color":
+                expected = (self._calib.color.height, self._calib.color.width)
+            else:
+                expected = (self._bag_depth_intr.height, self._bag_depth_intr.width)
+            if image.shape[:2] != expected:
+                raise self._error(
+                    f"{what} is {image.shape[1]}×{image.shape[0]}, expected "
+                    f"{expected[1]}×{expected[0]}; frames may not change size"
+                )
+        return image
 
-    def _pixels(self, msg: Any, topic: str, channels: int, itemsize: int) -> np.ndarray:
-        h, w, step = int(msg.height), int(msg.width), int(msg.step)
-        data = np.asarray(msg.data, dtype=np.uint8).ravel()
-        row = w * channels * itemsize
-        if h <= 0 or w <= 0 or step < row or data.size < step * h:
-            raise SessionError(
-                f"{self._src}: malformed image on {topic} ({w}×{h}, step {step}, {data.size} bytes)"
-            )
-        return data[: step * h].reshape(h, step)[:, :row]
+    def _decode_color(self, index: int) -> np.ndarray:
+        return self._decode(index, self._color)
 
-    def _decode_color(self, entry: _Entry) -> np.ndarray:
-        topic = self._color.data_topic
-        msg = self._image_msg(entry, topic)
-        enc = str(msg.encoding)
-        if enc.lower() not in _COLOR_ENCODINGS:
-            raise SessionError(
-                f"{self._src}: unsupported colour encoding {enc!r} on {topic} "
-                f"(supported: {', '.join(_COLOR_ENCODINGS)})"
-            )
-        channels, rgb_idx = _COLOR_ENCODINGS[enc.lower()]
-        px = self._pixels(msg, topic, channels, 1).reshape(
-            int(msg.height), int(msg.width), channels
-        )
-        return np.ascontiguousarray(px[:, :, list(rgb_idx)])
-
-    def _decode_depth(self, entry: _Entry) -> np.ndarray:
-        topic = self._depth.data_topic
-        msg = self._image_msg(entry, topic)
-        enc = str(msg.encoding)
-        kind = _DEPTH_ENCODINGS.get(enc.lower())
-        if kind is None:
-            raise SessionError(
-                f"{self._src}: unsupported depth encoding {enc!r} on {topic} "
-                "(supported: mono16, 16UC1, 32FC1)"
-            )
-        dtype = np.dtype(("<" if not msg.is_bigendian else ">") + kind)
-        px = self._pixels(msg, topic, 1, dtype.itemsize)
-        values = np.ascontiguousarray(px).view(dtype).reshape(int(msg.height), int(msg.width))
-        if kind == "u2":
-            return (values.astype(np.float64) * self._depth_units_m).astype(np.float32)
-        depth = values.astype(np.float32)
-        depth[~np.isfinite(depth) | (depth < 0)] = 0.0
-        return depth
+    def _decode_depth(self, index: int) -> np.ndarray:
+        return self._decode(index, self._depth)
 
     # -- IMU ------------------------------------------------------------------------------
 
     def _read_imu(self) -> ImuSamples:
-        acc_topic, gyr_topic = self._accel.data_topic, self._gyro.data_topic
-        jobs = [(e, 0) for e in self._topic_entries(acc_topic)]
-        jobs += [(e, 1) for e in self._topic_entries(gyr_topic)]
+        streams = (self._accel, self._gyro)
+        jobs = [(r, which) for which, s in enumerate(streams) for r in self._bag.refs(s.data_topic)]
         jobs.sort(key=lambda j: (j[0].chunk_pos, j[0].offset))
         t: list[list[int]] = [[], []]
+        rec: list[list[int]] = [[], []]
         v: list[list[tuple[float, float, float]]] = [[], []]
         standard: dict[int, bool] = {}
-        for entry, which in jobs:
-            raw = self._records.message(entry)
-            if entry.conn not in standard:
-                standard[entry.conn] = self._types.is_standard(entry.conn, "sensor_msgs/msg/Imu")
-            parsed = _parse_imu(raw, which) if standard[entry.conn] else None
-            if parsed is None:
-                topic = gyr_topic if which else acc_topic
-                msg = self._types.decode(entry.conn, raw, topic)
-                vec = msg.angular_velocity if which else msg.linear_acceleration
-                parsed = (_stamp_ns(msg.header.stamp), (vec.x, vec.y, vec.z))
+        for ref, which in jobs:
+            topic = streams[which].data_topic
+            raw = self._bag.read(ref)
+            if ref.conn not in standard:
+                standard[ref.conn] = self._bag.is_standard(ref.conn, _IMU_TYPE)
+            try:
+                parsed = parse_imu_payload(raw, bool(which)) if standard[ref.conn] else None
+                if parsed is None:
+                    msg = self._bag.decode(ref, topic, raw)
+                    vec = msg.angular_velocity if which else msg.linear_acceleration
+                    parsed = (_header_stamp(msg), (vec.x, vec.y, vec.z))
+            except ValueError as exc:
+                raise self._error(f"IMU message on {topic}: {exc}") from None
             t[which].append(parsed[0])
+            rec[which].append(ref.time)
             v[which].append(parsed[1])
+        t_arr = [np.array(x, dtype=np.int64) for x in t]
+        for which, s in enumerate(streams):
+            # restore record-time order (jobs were read in file order) for the stamp check
+            order = np.argsort(np.array(rec[which], dtype=np.int64), kind="stable")
+            self._check_stamps(
+                t_arr[which][order],
+                np.array(rec[which], dtype=np.int64)[order],
+                f"{_KIND_NAME[s.kind]} sample",
+            )
         imu = merge_imu_streams(
-            np.array(t[0], dtype=np.int64),
+            t_arr[0],
             np.array(v[0], dtype=np.float64).reshape(-1, 3),
-            np.array(t[1], dtype=np.int64),
+            t_arr[1],
             np.array(v[1], dtype=np.float64).reshape(-1, 3),
             gap_warn_s=self._imu_gap_warn_s,
             source=self._src,

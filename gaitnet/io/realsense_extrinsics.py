@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from gaitnet.geometry import invert_T, make_T, rotmat_from_quat
 from gaitnet.io.types import ImuNoise
 
 TF_REF_TO_STREAM = "ref_to_stream"
@@ -43,38 +44,20 @@ TF_STREAM_TO_REF = "stream_to_ref"
 """``tf`` of a stream maps that stream's points into the reference stream."""
 
 
-def quaternion_to_matrix(x: float, y: float, z: float, w: float) -> np.ndarray:
-    """3×3 rotation of the unit quaternion ``(x, y, z, w)`` (Hamilton, as ROS)."""
-    q = np.array([x, y, z, w], dtype=np.float64)
-    n = float(np.linalg.norm(q))
-    if not math.isfinite(n) or n < 1e-9:
-        raise ValueError(f"not a rotation quaternion: {q.tolist()}")
-    x, y, z, w = q / n
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
 def transform_to_matrix(msg: Any) -> np.ndarray:
-    """4×4 matrix of a ``geometry_msgs/Transform`` (``[R t; 0 1]``, direction as stored)."""
-    T = np.eye(4)
+    """4×4 matrix of a ``geometry_msgs/Transform`` (``[R t; 0 1]``, direction as stored).
+
+    ``ValueError`` for a non-finite translation or a quaternion that is zero or not finite
+    (the quaternion is normalised, as ROS does).
+    """
     r, t = msg.rotation, msg.translation
-    T[:3, :3] = quaternion_to_matrix(r.x, r.y, r.z, r.w)
-    T[:3, 3] = [t.x, t.y, t.z]
-    return T
-
-
-def invert_rigid(T: np.ndarray) -> np.ndarray:
-    """Inverse of a 4×4 rigid transform."""
-    R, t = T[:3, :3], T[:3, 3]
-    out = np.eye(4)
-    out[:3, :3] = R.T
-    out[:3, 3] = -R.T @ t
-    return out
+    q_wxyz = np.array([r.w, r.x, r.y, r.z], dtype=np.float64)
+    p = np.array([t.x, t.y, t.z], dtype=np.float64)
+    if not np.isfinite(q_wxyz).all() or np.linalg.norm(q_wxyz) < 1e-9:
+        raise ValueError(f"not a rotation quaternion (x, y, z, w): {np.roll(q_wxyz, -1).tolist()}")
+    if not np.isfinite(p).all():
+        raise ValueError(f"translation is not finite: {p.tolist()}")
+    return make_T(rotmat_from_quat(q_wxyz), p)
 
 
 def relative_extrinsic(
@@ -87,9 +70,9 @@ def relative_extrinsic(
     stream}`` and the result is ``E_target⁻¹ · E_source``.
     """
     if convention == TF_REF_TO_STREAM:
-        return E_target @ invert_rigid(E_source)
+        return E_target @ invert_T(E_source)
     if convention == TF_STREAM_TO_REF:
-        return invert_rigid(E_target) @ E_source
+        return invert_T(E_target) @ E_source
     raise ValueError(f"unknown tf convention {convention!r}")
 
 

@@ -317,6 +317,22 @@ class Frame:
     depth_m: np.ndarray
 
 
+IMU_ACCEL_LIMIT_MS2 = 16 * 9.80665
+"""Largest possible specific force [m/s²]: ±16 g, the widest range of MEMS IMUs such as the
+D455's (BMI055: ±2 … ±16 g). A larger value is a damaged sample, not a measurement."""
+IMU_GYRO_LIMIT_RADS = math.radians(2000.0)
+"""Largest possible angular rate [rad/s]: ±2000 °/s, the widest range of the same IMUs."""
+
+
+def implausible_imu(accel: np.ndarray, gyro: np.ndarray) -> np.ndarray:
+    """Rows where ``accel`` (N, 3) or ``gyro`` (N, 3) exceed :data:`IMU_ACCEL_LIMIT_MS2` /
+    :data:`IMU_GYRO_LIMIT_RADS` on any axis (boolean (N,)); NaN rows are not flagged here."""
+    with np.errstate(invalid="ignore"):
+        return (np.abs(accel) > IMU_ACCEL_LIMIT_MS2).any(axis=1) | (
+            np.abs(gyro) > IMU_GYRO_LIMIT_RADS
+        ).any(axis=1)
+
+
 @dataclass(frozen=True)
 class ImuSamples:
     """IMU stream on common timestamps: ``accel`` specific force [m/s²], ``gyro`` [rad/s]."""
