@@ -16,7 +16,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from gaitnet.config import config_keys, load_config
-from gaitnet.errors import GaitnetError
+from gaitnet.errors import GaitnetError, InputError
 from gaitnet.motion.amass import DatasetSplit
 from gaitnet.motion.prepared import prepare_walking_subset
 from gaitnet.training.checkpoint import (
@@ -250,7 +250,7 @@ def test_torchrun_environment_and_rank_filter(monkeypatch) -> None:
     info = dist_info_from_env()
     assert (info.rank, info.world_size, info.local_rank, info.distributed) == (1, 2, 1, True)
     monkeypatch.setenv("RANK", "2")
-    with pytest.raises(ValueError, match="inconsistent"):
+    with pytest.raises(InputError, match="inconsistent"):
         dist_info_from_env()
     rec = logging.LogRecord("x", logging.INFO, "", 0, "m", (), None)
     warn = logging.LogRecord("x", logging.WARNING, "", 0, "m", (), None)

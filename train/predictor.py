@@ -24,14 +24,14 @@ import sys
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import torch
 from torch.utils.data import DataLoader, DistributedSampler
 from tqdm import tqdm
 
-from gaitnet.config import config_to_dict, load_config, save_config
-from gaitnet.errors import GaitnetError
+from gaitnet.config import config_to_dict, load_config, parse_config, save_config
+from gaitnet.errors import ConfigError, GaitnetError, InputError
 from gaitnet.evaluation.metrics import mean_angle_error, mpjpe_per_horizon
 from gaitnet.io.atomic import atomic_write_text
 from gaitnet.motion.evaluation import (
@@ -43,22 +43,28 @@ from gaitnet.motion.evaluation import (
 from gaitnet.motion.gcn import DCTGCN, PredictorConfig, joint_positions
 from gaitnet.motion.losses import motion_loss
 from gaitnet.motion.prepared import load_prepared
-from gaitnet.training.checkpoint import git_hash, load_checkpoint, save_checkpoint
+from gaitnet.training.checkpoint import (
+    CheckpointError,
+    git_hash,
+    load_checkpoint,
+    load_state,
+    save_checkpoint,
+)
 from gaitnet.training.distributed import (
     all_reduce_sum,
     barrier,
     cleanup_distributed,
     init_distributed,
 )
-from gaitnet.training.logs import setup_logging
-from gaitnet.training.metrics import MetricsLogger
+from gaitnet.training.logs import close_logging, setup_logging
+from gaitnet.training.metrics import MetricsLogger, require_finite
 from gaitnet.training.predictor import (
     PredictorTrainingConfig,
     build_windows,
     loss_skeleton,
     prepared_with_split,
 )
-from gaitnet.training.seeding import seed_everything
+from gaitnet.training.seeding import restore_rng_state, rng_state, seed_everything
 
 logger = logging.getLogger("train.predictor")
 METRICS = (
@@ -103,17 +109,18 @@ def train_one_epoch(
         sums[:3] += terms.double() * b
         sums[3] += b
         if i % 50 == 0:  # a host sync: not every step
-            if not torch.isfinite(sums[0]):
-                raise FloatingPointError(f"epoch {epoch}: the loss is not finite; stopping")
+            require_finite({"train/loss": float(sums[0])}, f"epoch {epoch}, step {i}")
             bar.set_postfix(loss=f"{float(sums[0] / sums[3]):.4f}", refresh=False)
     sums = all_reduce_sum(sums).cpu()
-    if not torch.isfinite(sums).all():
-        raise FloatingPointError(f"epoch {epoch}: the loss is not finite; stopping")
-    return {
+    if sums[3] == 0:
+        raise InputError(f"epoch {epoch}: no training batch (fewer windows than one batch)")
+    stats = {
         "train/loss": float(sums[0] / sums[3]),
         "train/mpjpe_m": float(sums[1] / sums[3]),
         "train/mae_rad": float(sums[2] / sums[3]),
     }
+    require_finite(stats, f"epoch {epoch}")
+    return stats
 
 
 @torch.no_grad()
@@ -181,50 +188,81 @@ def final_evaluation(
 
 
 def _device(name: str) -> torch.device:
+    """``train.device`` as a torch device; a device this machine lacks is an InputError."""
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    return torch.device(name)
+    device = torch.device(name)
+    if device.type == "cuda":
+        n = torch.cuda.device_count() if torch.cuda.is_available() else 0
+        if (device.index or 0) >= n:
+            raise InputError(f"train.device={name}: this machine has {n} CUDA device(s)")
+    if device.type == "mps" and not torch.backends.mps.is_available():
+        raise InputError(f"train.device={name}: MPS is not available on this machine")
+    return device
 
 
 def _with_checkpoint_architecture(
     cfg: PredictorTrainingConfig, ckpt: dict[str, Any], path: str | Path
 ) -> PredictorTrainingConfig:
     """Architecture keys (``model.*``) come from the checkpoint, as nanoGPT does on resume."""
-    model = PredictorConfig(**ckpt["config"]["model"])
+    try:
+        model = parse_config(PredictorConfig, ckpt["config"]["model"], f"{path} (config)")
+    except (ConfigError, KeyError, TypeError) as exc:
+        raise CheckpointError(
+            f"checkpoint {path}: no usable DCT-GCN architecture in its config ({exc})"
+        ) from exc
     if model != cfg.model:
         logger.warning("model keys taken from %s: %s (config had %s)", path, model, cfg.model)
     return replace(cfg, model=model)
 
 
+def _restore_rng(ckpt: dict[str, Any], rank: int, path: Path, loader_gen: torch.Generator) -> None:
+    states = ckpt.get("rng")
+    if not isinstance(states, list) or rank >= len(states):
+        raise CheckpointError(f"checkpoint {path}: no random-generator state for rank {rank}")
+    try:
+        restore_rng_state(states[rank], loader_gen)
+    except ValueError as exc:
+        raise CheckpointError(f"checkpoint {path}: {exc}") from exc
+
+
 def main(args: argparse.Namespace) -> int:
+    """Train (or ``--eval-only``). Every input is checked before the run folder is touched."""
     info = init_distributed()
     cfg = load_config(PredictorTrainingConfig, args.config, args.overrides)
     run_dir = cfg.run_dir
+    device = _device(cfg.train.device)
     if cfg.train.num_threads > 0:
         torch.set_num_threads(cfg.train.num_threads)
-    device = _device(cfg.train.device)
 
     if args.eval_only:
         setup_logging(info.rank)
         if info.is_main:
             return eval_only(cfg, args, device)
         return 0
+    if args.onnx is not None or args.out is not None:
+        raise InputError("--onnx and --out only go with --eval-only")
 
-    ckpt = None
+    ckpt, ckpt_path = None, None
     if args.resume:
-        path = run_dir / "last.pt" if args.checkpoint is None else Path(args.checkpoint)
-        ckpt = load_checkpoint(path)
-        cfg = _with_checkpoint_architecture(cfg, ckpt, path)
+        ckpt_path = run_dir / "last.pt" if args.checkpoint is None else Path(args.checkpoint)
+        ckpt = load_checkpoint(ckpt_path)
+        cfg = _with_checkpoint_architecture(cfg, ckpt, ckpt_path)
+    elif args.checkpoint is not None:
+        raise InputError("--checkpoint goes with --resume or --eval-only")
     elif (run_dir / "last.pt").exists():
-        raise GaitnetError(
+        raise InputError(
             f"{run_dir} already holds a checkpoint; pass --resume to continue it, or choose "
             "another run name (name=...)"
         )
-    setup_logging(info.rank, run_dir)
-    seed_everything(cfg.train.seed, info.rank)
-    logger.info("run %s on %s (%d process(es), %d threads)", run_dir, device,
-                info.world_size, torch.get_num_threads())  # fmt: skip
+    if info.world_size > cfg.train.batch_size:
+        raise InputError(
+            f"train.batch_size={cfg.train.batch_size} is smaller than the {info.world_size} "
+            "processes: each needs at least one window per step"
+        )
 
+    seed_everything(cfg.train.seed, info.rank)
+    loader_gen = torch.Generator().manual_seed(cfg.train.seed + info.rank)
     prepared = prepared_with_split(load_prepared(cfg.data.prepared), cfg.data.split)
     train_ds = build_windows(cfg, "train", cfg.data.train_stride, prepared)
     val_ds = build_windows(cfg, "val", cfg.data.eval_stride, prepared)
@@ -232,39 +270,53 @@ def main(args: argparse.Namespace) -> int:
         train_ds, info.world_size, info.rank, shuffle=True, seed=cfg.train.seed, drop_last=True
     )
     val_sampler = DistributedSampler(val_ds, info.world_size, info.rank, shuffle=False)
-    per_rank_batch = max(1, cfg.train.batch_size // info.world_size)
+    per_rank_batch = cfg.train.batch_size // info.world_size
+    if len(train_sampler) < per_rank_batch:
+        raise InputError(
+            f"train.batch_size={cfg.train.batch_size} exceeds the {len(train_ds)} training "
+            f"windows of {cfg.data.prepared}: not one full batch per epoch (lower "
+            "train.batch_size or data.train_stride)"
+        )
     train_loader = DataLoader(
         train_ds, per_rank_batch, sampler=train_sampler, drop_last=True,
-        num_workers=cfg.data.num_workers,
+        num_workers=cfg.data.num_workers, generator=loader_gen,
     )  # fmt: skip
     val_loader = DataLoader(
         val_ds, cfg.train.eval_batch_size, sampler=val_sampler, num_workers=cfg.data.num_workers
     )
+    skeleton_model = loss_skeleton(cfg.loss)
 
     model = DCTGCN(cfg.model).to(device)
     model_without_ddp = model
-    if info.distributed:
-        ids = [info.local_rank] if device.type == "cuda" else None
-        model = torch.nn.parallel.DistributedDataParallel(model, device_ids=ids)
     optimizer = torch.optim.Adam(
         model_without_ddp.parameters(), lr=cfg.optim.lr, weight_decay=cfg.optim.weight_decay
     )
     scheduler = torch.optim.lr_scheduler.StepLR(
         optimizer, step_size=cfg.optim.lr_step_epochs, gamma=cfg.optim.lr_gamma
     )
-    skeleton = torch.tensor(loss_skeleton(cfg.loss).rest_joints, dtype=torch.float32).to(device)
-    n_params = sum(p.numel() for p in model_without_ddp.parameters())
-    logger.info("DCTGCN %s: %d parameters", cfg.model, n_params)
-
     start_epoch, best_metric, best_epoch = 0, math.inf, -1
     if ckpt is not None:
-        model_without_ddp.load_state_dict(ckpt["model"])
-        optimizer.load_state_dict(ckpt["optimizer"])
-        scheduler.load_state_dict(ckpt["scheduler"])
+        load_state(model_without_ddp, ckpt["model"], ckpt_path, "model")
+        load_state(optimizer, ckpt["optimizer"], ckpt_path, "optimizer")
+        load_state(scheduler, ckpt["scheduler"], ckpt_path, "scheduler")
+        _restore_rng(ckpt, info.rank, ckpt_path, loader_gen)
         start_epoch = int(ckpt["epoch"]) + 1
         best_metric, best_epoch = float(ckpt["best_metric"]), int(ckpt["best_epoch"])
-        if "rng" in ckpt and info.rank < len(ckpt["rng"]):
-            torch.set_rng_state(ckpt["rng"][info.rank])
+    if info.distributed:
+        ids = [info.local_rank] if device.type == "cuda" else None
+        model = torch.nn.parallel.DistributedDataParallel(model, device_ids=ids)
+    skeleton = torch.tensor(skeleton_model.rest_joints, dtype=torch.float32).to(device)
+
+    # Every input is valid: from here on the run folder is written.
+    setup_logging(info.rank, run_dir)
+    logger.info("run %s on %s (%d process(es), %d threads)", run_dir, device,
+                info.world_size, torch.get_num_threads())  # fmt: skip
+    logger.info("windows: %d train (stride %d), %d val (stride %d) from %s",
+                len(train_ds), cfg.data.train_stride, len(val_ds), cfg.data.eval_stride,
+                cfg.data.prepared)  # fmt: skip
+    n_params = sum(p.numel() for p in model_without_ddp.parameters())
+    logger.info("DCTGCN %s: %d parameters", cfg.model, n_params)
+    if ckpt is not None:
         logger.info("resumed from epoch %d (best %.5f at epoch %d)", start_epoch - 1,
                     best_metric, best_epoch)  # fmt: skip
 
@@ -275,55 +327,58 @@ def main(args: argparse.Namespace) -> int:
             run_dir, METRICS, start_epoch=start_epoch, tensorboard=cfg.train.tensorboard
         )
     commit = git_hash()
-    for epoch in range(start_epoch, cfg.train.epochs):
-        t0 = time.perf_counter()
-        train_sampler.set_epoch(epoch)
-        lr = optimizer.param_groups[0]["lr"]
-        stats = train_one_epoch(
-            model, optimizer, train_loader, skeleton, cfg, epoch, device, info.is_main
-        )
-        scheduler.step()
-        stats.update(evaluate(model_without_ddp, val_loader, skeleton, cfg, device))
-        stats.update({"lr": lr, "time/epoch_s": time.perf_counter() - t0})
-        is_best = stats["val/mpjpe_m"] < best_metric
-        if is_best:
-            best_metric, best_epoch = stats["val/mpjpe_m"], epoch
-        # Every rank's generator state, so each resumes its own dropout stream.
-        rng = [torch.get_rng_state()]
-        if info.distributed:
-            rng = [torch.empty_like(rng[0]) for _ in range(info.world_size)]
-            torch.distributed.all_gather_object(rng, torch.get_rng_state())
-        logger.info(
-            "epoch %d/%d lr %.3g train loss %.5f | val MPJPE %.2f mm (@%d ms %.2f mm) MAE %.4f "
-            "rad%s | %.0f s", epoch, cfg.train.epochs - 1, lr, stats["train/loss"],
-            1000 * stats["val/mpjpe_m"], round(1000 * cfg.model.n_future / prepared.fps),
-            1000 * stats["val/mpjpe_last_m"], stats["val/mae_rad"], " *best*" if is_best else "",
-            stats["time/epoch_s"],
-        )  # fmt: skip
-        if info.is_main:
-            metrics.log(epoch, stats)
-            state = {
-                "model": model_without_ddp.state_dict(),
-                "optimizer": optimizer.state_dict(),
-                "scheduler": scheduler.state_dict(),
-                "epoch": epoch,
-                "best_metric": best_metric,
-                "best_epoch": best_epoch,
-                "config": config_to_dict(cfg),
-                "git_hash": commit,
-                "rng": rng,
-                "fps": float(prepared.fps),
-                "val": stats,
-            }
-            save_checkpoint(state, run_dir / "last.pt")
+    try:
+        for epoch in range(start_epoch, cfg.train.epochs):
+            t0 = time.perf_counter()
+            train_sampler.set_epoch(epoch)
+            lr = optimizer.param_groups[0]["lr"]
+            stats = train_one_epoch(
+                model, optimizer, train_loader, skeleton, cfg, epoch, device, info.is_main
+            )
+            scheduler.step()
+            stats.update(evaluate(model_without_ddp, val_loader, skeleton, cfg, device))
+            stats.update({"lr": lr, "time/epoch_s": time.perf_counter() - t0})
+            require_finite(stats, f"epoch {epoch}")
+            is_best = stats["val/mpjpe_m"] < best_metric
             if is_best:
-                save_checkpoint(state, run_dir / "best.pt")
-    if metrics is not None:
-        metrics.close()
+                best_metric, best_epoch = stats["val/mpjpe_m"], epoch
+            # Every rank's generator states, so each resumes its own streams.
+            rng = [rng_state(loader_gen)]
+            if info.distributed:
+                rng = [None] * info.world_size
+                torch.distributed.all_gather_object(rng, rng_state(loader_gen))
+            logger.info(
+                "epoch %d/%d lr %.3g train loss %.5f | val MPJPE %.2f mm (@%d ms %.2f mm) MAE "
+                "%.4f rad%s | %.0f s", epoch, cfg.train.epochs - 1, lr, stats["train/loss"],
+                1000 * stats["val/mpjpe_m"], round(1000 * cfg.model.n_future / prepared.fps),
+                1000 * stats["val/mpjpe_last_m"], stats["val/mae_rad"],
+                " *best*" if is_best else "", stats["time/epoch_s"],
+            )  # fmt: skip
+            if info.is_main:
+                metrics.log(epoch, stats)
+                state = {
+                    "model": model_without_ddp.state_dict(),
+                    "optimizer": optimizer.state_dict(),
+                    "scheduler": scheduler.state_dict(),
+                    "epoch": epoch,
+                    "best_metric": best_metric,
+                    "best_epoch": best_epoch,
+                    "config": config_to_dict(cfg),
+                    "git_hash": commit,
+                    "rng": rng,
+                    "fps": float(prepared.fps),
+                    "val": stats,
+                }
+                save_checkpoint(state, run_dir / "last.pt")
+                if is_best:
+                    save_checkpoint(state, run_dir / "best.pt")
+    finally:
+        if metrics is not None:
+            metrics.close()
     barrier()
     if info.is_main and not args.no_final_eval:
         best = load_checkpoint(run_dir / "best.pt")
-        model_without_ddp.load_state_dict(best["model"])
+        load_state(model_without_ddp, best["model"], run_dir / "best.pt", "model")
         final_evaluation(
             cfg,
             torch_predictor(model_without_ddp, device=device, batch_size=cfg.eval.batch_size),
@@ -339,13 +394,15 @@ def main(args: argparse.Namespace) -> int:
 def eval_only(cfg: PredictorTrainingConfig, args: argparse.Namespace, device: torch.device) -> int:
     """``--eval-only``: evaluate a checkpoint (architecture from it) or an ONNX file."""
     if (args.checkpoint is None) == (args.onnx is None):
-        raise GaitnetError("--eval-only needs exactly one of --checkpoint or --onnx")
+        raise InputError("--eval-only needs exactly one of --checkpoint or --onnx")
+    if args.resume:
+        raise InputError("--resume and --eval-only exclude each other")
     extra = {"config": config_to_dict(cfg)}
     if args.checkpoint is not None:
         ckpt = load_checkpoint(args.checkpoint)
         cfg = _with_checkpoint_architecture(cfg, ckpt, args.checkpoint)
         model = DCTGCN(cfg.model).to(device)
-        model.load_state_dict(ckpt["model"])
+        load_state(model, ckpt["model"], args.checkpoint, "model")
         predictor = torch_predictor(model, device=device, batch_size=cfg.eval.batch_size)
         source = Path(args.checkpoint)
         extra.update(checkpoint=str(source), epoch=int(ckpt["epoch"]), config=config_to_dict(cfg))
@@ -360,8 +417,15 @@ def eval_only(cfg: PredictorTrainingConfig, args: argparse.Namespace, device: to
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """Usage errors are bad input too: one line (no usage block) and exit status 1."""
+
+    def error(self, message: str) -> NoReturn:
+        raise InputError(f"{self.prog}: {message} (see --help)")
+
+
 def get_args_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = _Parser(prog="train/predictor.py", description=__doc__.splitlines()[0])
     parser.add_argument("--config", required=True, help="YAML config (configs/predictor/)")
     parser.add_argument(
         "--resume",
@@ -381,13 +445,21 @@ def get_args_parser() -> argparse.ArgumentParser:
     return parser
 
 
-if __name__ == "__main__":
-    arguments = get_args_parser().parse_args()
+def cli(argv: list[str] | None = None) -> int:
+    """Parse ``argv`` and run :func:`main`: bad input is one line on stderr and exit status 1
+    (gaitnet's error taxonomy, gaitnet/errors.py); anything else is a bug with a traceback."""
     try:
-        code = main(arguments)
-    except (GaitnetError, FileNotFoundError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        code = 1
+        return main(get_args_parser().parse_args(argv))
+    except (GaitnetError, OSError) as exc:
+        print(f"error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return 130
     finally:
+        close_logging()
         cleanup_distributed()
-    sys.exit(code)
+
+
+if __name__ == "__main__":
+    sys.exit(cli())

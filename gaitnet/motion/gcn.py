@@ -89,20 +89,26 @@ class PredictorConfig:
     n_blocks: int = 12
     dropout: float = 0.5
 
+    #: Largest accepted value of each integer key (far above any useful size; guards against
+    #: typos that would ask for terabytes).
+    LIMITS = {"n_past": 1000, "n_future": 1000, "dct_n": 2000, "n_nodes": 1000, "hidden": 8192}
+
     def __post_init__(self) -> None:
-        for name in ("n_past", "n_future", "dct_n", "n_nodes", "hidden"):
+        for name, limit in self.LIMITS.items():
             value = getattr(self, name)
-            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+            if not isinstance(value, int) or isinstance(value, bool) or not 1 <= value <= limit:
                 raise ValueError(
-                    f"PredictorConfig.{name} must be a positive integer, got {value!r}"
+                    f"PredictorConfig.{name} must be an integer in [1, {limit}], got {value!r}"
                 )
-        if not isinstance(self.n_blocks, int) or self.n_blocks < 0:
-            raise ValueError(f"PredictorConfig.n_blocks must be >= 0, got {self.n_blocks!r}")
+        if not isinstance(self.n_blocks, int) or isinstance(self.n_blocks, bool) or not (
+            0 <= self.n_blocks <= 256
+        ):
+            raise ValueError(f"PredictorConfig.n_blocks must be in [0, 256], got {self.n_blocks!r}")
         if self.dct_n > self.seq_len:
             raise ValueError(
                 f"PredictorConfig.dct_n = {self.dct_n} exceeds n_past + n_future = {self.seq_len}"
             )
-        if not 0.0 <= float(self.dropout) < 1.0:
+        if not isinstance(self.dropout, (int, float)) or not 0.0 <= float(self.dropout) < 1.0:
             raise ValueError(f"PredictorConfig.dropout must be in [0, 1), got {self.dropout!r}")
 
     @property

@@ -3,23 +3,35 @@
 A checkpoint is a plain dict (torchvision references, STYLE.md): ``model``, ``optimizer``,
 ``scheduler`` (state dicts), ``epoch`` (the last COMPLETED epoch, 0-based), ``best_metric``
 and ``best_epoch`` (model selection on the validation split), ``config`` (the resolved config
-as plain data, :func:`gaitnet.config.config_to_dict`), ``git_hash`` and ``rng`` (torch's CPU
-generator state, so a resumed run draws the same dropout masks as an uninterrupted one).
-Everything in it is a tensor, a number, a string, ``None`` or a dict/list of those, which is
-what ``torch.load(..., weights_only=True)`` admits; :func:`save_checkpoint` refuses anything
-else before writing, and writes atomically (:func:`gaitnet.io.atomic.atomic_save`).
+as plain data, :func:`gaitnet.config.config_to_dict`), ``git_hash`` and ``rng`` (one dict per
+rank of :func:`gaitnet.training.seeding.rng_state`: python, numpy, torch CPU, torch CUDA on
+every device, DataLoader generator, so a resumed run draws the same numbers as an
+uninterrupted one, on a GPU too). Everything in it is a tensor, a number, a string, ``None`` or
+a dict/list of those, which is what ``torch.load(..., weights_only=True)`` admits;
+:func:`save_checkpoint` refuses anything else, and any non-finite number, before writing, and
+writes atomically (:func:`gaitnet.io.atomic.atomic_save`: a temporary sibling named with the
+writer's pid, renamed into place; the leftover of a run killed mid-save is removed by the next
+save of the same file).
+
+Loading (:func:`load_checkpoint`) is always ``weights_only=True``; a file that is missing,
+truncated, not a checkpoint, or holds pickled Python objects (which could run code) is a
+one-line :class:`CheckpointError`. :func:`load_state` puts a checkpoint's state dict into a
+model, optimizer or scheduler and turns a mismatch (another architecture) into the same.
 """
 
 from __future__ import annotations
 
+import math
+import pickle
+import re
 import subprocess
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import torch
 
-from gaitnet.errors import GaitnetError
+from gaitnet.errors import InputError
 from gaitnet.io.atomic import atomic_save
 
 __all__ = [
@@ -28,6 +40,7 @@ __all__ = [
     "check_weights_only_safe",
     "git_hash",
     "load_checkpoint",
+    "load_state",
     "save_checkpoint",
 ]
 
@@ -46,8 +59,13 @@ CHECKPOINT_KEYS: tuple[str, ...] = (
 _SAFE_SCALARS = (bool, int, float, str, type(None), torch.dtype, torch.device, torch.Size)
 
 
-class CheckpointError(GaitnetError):
-    """A checkpoint is missing, unreadable or lacks a key; the message names the file."""
+class CheckpointError(InputError):
+    """A checkpoint is missing, unreadable, unsafe, lacks a key or does not fit the model; the
+    one-line message names the file."""
+
+
+class _Stateful(Protocol):
+    def load_state_dict(self, state_dict: Any, /) -> Any: ...
 
 
 def git_hash(cwd: str | Path | None = None) -> str:
@@ -73,7 +91,10 @@ def git_hash(cwd: str | Path | None = None) -> str:
 
 
 def check_weights_only_safe(obj: Any, where: str = "checkpoint") -> None:
-    """Raise ``TypeError`` naming the path of the first value ``weights_only`` would refuse."""
+    """Raise ``TypeError`` naming the path of the first value ``weights_only`` would refuse,
+    ``ValueError`` for the first non-finite float (a checkpoint never records a NaN)."""
+    if isinstance(obj, float) and not math.isfinite(obj):
+        raise ValueError(f"{where} is {obj}: a checkpoint never records a non-finite number")
     if isinstance(obj, (torch.Tensor, *_SAFE_SCALARS)):
         return
     if isinstance(obj, Mapping):
@@ -99,18 +120,62 @@ def save_checkpoint(state: Mapping[str, Any], path: str | Path) -> Path:
     return path
 
 
+def _one_line(text: str, limit: int = 300) -> str:
+    line = " ".join(text.split())
+    return line if len(line) <= limit else line[: limit - 3] + "..."
+
+
 def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") -> dict[str, Any]:
-    """``torch.load(path, weights_only=True)`` with clear errors and a key check."""
+    """``torch.load(path, weights_only=True)`` with one-line errors and a key check."""
     path = Path(path)
+    if path.is_dir():
+        raise CheckpointError(f"checkpoint {path} is a folder, expected a .pt file")
     if not path.is_file():
         raise CheckpointError(f"checkpoint {path} does not exist")
     try:
         state = torch.load(path, map_location=map_location, weights_only=True)
-    except Exception as exc:  # unpickling raises many kinds
-        raise CheckpointError(f"checkpoint {path} cannot be read ({exc})") from exc
+    except pickle.UnpicklingError as exc:
+        # torch's message is several lines and suggests weights_only=False: never do that.
+        found = re.search(r"(?:GLOBAL|global:?)\s+([\w.]+)", str(exc))
+        what = f" ({found.group(1)})" if found else ""
+        raise CheckpointError(
+            f"checkpoint {path} refused: it holds pickled Python objects{what}, not only "
+            "tensors and plain data; gaitnet loads checkpoints with weights_only=True and "
+            "never runs code from a file"
+        ) from exc
+    except OSError:
+        raise
+    except Exception as exc:  # truncated or foreign files raise many kinds
+        reason = _one_line(str(exc).split(". ")[0]) or type(exc).__name__
+        raise CheckpointError(f"checkpoint {path} cannot be read ({reason})") from exc
     if not isinstance(state, dict):
         raise CheckpointError(f"checkpoint {path} holds a {type(state).__name__}, not a dict")
     missing = [k for k in CHECKPOINT_KEYS if k not in state]
     if missing:
         raise CheckpointError(f"checkpoint {path} lacks key(s) {missing}")
+    for key in ("epoch", "best_epoch"):
+        if not isinstance(state[key], int) or isinstance(state[key], bool) or state[key] < -1:
+            raise CheckpointError(f"checkpoint {path}: key {key!r} must be an epoch number")
+    if not isinstance(state["best_metric"], (int, float)) or not math.isfinite(
+        state["best_metric"]
+    ):
+        raise CheckpointError(f"checkpoint {path}: key 'best_metric' must be a finite number")
+    if not isinstance(state["config"], dict):
+        raise CheckpointError(f"checkpoint {path}: key 'config' must be a mapping")
     return state
+
+
+def load_state(target: _Stateful, state: Any, path: str | Path, what: str) -> None:
+    """``target.load_state_dict(state)``; a mismatch is a one-line :class:`CheckpointError`.
+
+    ``what`` names the part (``"model"``, ``"optimizer"``, ...) in the message.
+    """
+    if not isinstance(state, dict):
+        raise CheckpointError(f"checkpoint {path}: key {what!r} must be a state dict")
+    try:
+        target.load_state_dict(state)
+    except (RuntimeError, ValueError, KeyError, TypeError, IndexError, AttributeError) as exc:
+        raise CheckpointError(
+            f"checkpoint {path}: its {what} state does not fit "
+            f"(another architecture?): {_one_line(str(exc))}"
+        ) from exc

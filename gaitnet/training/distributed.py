@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import torch
 import torch.distributed as dist
 
+from gaitnet.errors import InputError
+
 __all__ = [
     "DistInfo",
     "all_reduce_sum",
@@ -55,7 +57,7 @@ def _env_int(name: str, default: int) -> int:
     try:
         return int(raw)
     except ValueError as exc:
-        raise ValueError(f"environment variable {name}={raw!r} is not an integer") from exc
+        raise InputError(f"environment variable {name}={raw!r} is not an integer") from exc
 
 
 def dist_info_from_env() -> DistInfo:
@@ -64,7 +66,7 @@ def dist_info_from_env() -> DistInfo:
     world = _env_int("WORLD_SIZE", 1)
     local = _env_int("LOCAL_RANK", rank)
     if world < 1 or not 0 <= rank < world:
-        raise ValueError(f"inconsistent torchrun environment: RANK={rank}, WORLD_SIZE={world}")
+        raise InputError(f"inconsistent torchrun environment: RANK={rank}, WORLD_SIZE={world}")
     return DistInfo(rank=rank, world_size=world, local_rank=local)
 
 

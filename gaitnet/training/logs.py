@@ -14,7 +14,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-__all__ = ["RankZeroFilter", "TqdmHandler", "setup_logging"]
+__all__ = ["RankZeroFilter", "TqdmHandler", "close_logging", "setup_logging"]
 
 _FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
 _CONSOLE_FORMAT = "%(asctime)s %(message)s"
@@ -49,11 +49,8 @@ def setup_logging(
     Replaces handlers previously installed by this function (safe to call twice in one
     process, e.g. in tests). ``run_dir`` adds ``train.log`` (rank 0 only, appended on resume).
     """
+    close_logging()
     root = logging.getLogger()
-    for handler in list(root.handlers):
-        if getattr(handler, "_gaitnet_training", False):
-            root.removeHandler(handler)
-            handler.close()
     root.setLevel(level)
     rank_filter = RankZeroFilter(rank)
     console = TqdmHandler()
@@ -69,3 +66,12 @@ def setup_logging(
         handler._gaitnet_training = True  # type: ignore[attr-defined]
         root.addHandler(handler)
     return root
+
+
+def close_logging() -> None:
+    """Remove and close the handlers :func:`setup_logging` installed (closes ``train.log``)."""
+    root = logging.getLogger()
+    for handler in list(root.handlers):
+        if getattr(handler, "_gaitnet_training", False):
+            root.removeHandler(handler)
+            handler.close()

@@ -5,19 +5,43 @@ One row per epoch with a fixed set of columns (named like the TensorBoard tags, 
 by an interrupted run after its last checkpoint) are dropped first, so the file never holds an
 epoch twice; the rewrite is atomic. TensorBoard events go to ``<run_dir>/tb`` with
 ``purge_step`` set on resume for the same reason. Only rank 0 should create a logger.
+
+TensorBoard is an optional extra (``pip install -e '.[train]'``): it is imported only when
+asked for, and when it is not installed one log message says so and ``metrics.csv`` is still
+written. A metric row is only written when every value is finite
+(:func:`require_finite` raises :class:`NonFiniteMetricError` first), so neither ``metrics.csv``
+nor a checkpoint ever records a NaN.
 """
 
 from __future__ import annotations
 
 import csv
 import io
+import logging
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+from gaitnet.errors import InputError
 from gaitnet.io.atomic import atomic_write_text
 
-__all__ = ["MetricsLogger", "read_metrics"]
+__all__ = ["MetricsLogger", "NonFiniteMetricError", "read_metrics", "require_finite"]
+
+logger = logging.getLogger(__name__)
+
+
+class NonFiniteMetricError(InputError):
+    """Training diverged (a loss or metric is NaN/inf); nothing of that epoch is recorded."""
+
+
+def require_finite(values: Mapping[str, float], where: str) -> None:
+    """Raise :class:`NonFiniteMetricError` naming the first non-finite value of ``values``."""
+    for key, value in values.items():
+        if not math.isfinite(float(value)):
+            raise NonFiniteMetricError(
+                f"{where}: {key} is {float(value)}; training diverged (try a lower optim.lr or "
+                "optim.grad_clip_norm, and check the data); no checkpoint was written for it"
+            )
 
 
 def read_metrics(path: str | Path) -> list[dict[str, str]]:
@@ -54,12 +78,20 @@ class MetricsLogger:
             self._rewrite(kept)
         self._writer = None
         if tensorboard:
-            from torch.utils.tensorboard import SummaryWriter
-
-            self._writer = SummaryWriter(
-                log_dir=str(self.run_dir / "tb"),
-                purge_step=start_epoch if start_epoch > 0 else None,
-            )
+            try:
+                from torch.utils.tensorboard import SummaryWriter
+            except ImportError:
+                logger.warning(
+                    "tensorboard is not installed: metrics go to %s only "
+                    "(pip install -e '.[train]' for TensorBoard scalars, or set "
+                    "train.tensorboard=false)",
+                    self.path,
+                )
+            else:
+                self._writer = SummaryWriter(
+                    log_dir=str(self.run_dir / "tb"),
+                    purge_step=start_epoch if start_epoch > 0 else None,
+                )
 
     def _rewrite(self, rows: list[dict[str, str]]) -> None:
         buffer = io.StringIO()
@@ -70,10 +102,14 @@ class MetricsLogger:
         atomic_write_text(self.path, buffer.getvalue())
 
     def log(self, epoch: int, values: Mapping[str, float]) -> None:
-        """Append the row of ``epoch`` and write each value as a TensorBoard scalar."""
+        """Append the row of ``epoch`` and write each value as a TensorBoard scalar.
+
+        Every value must be finite (:func:`require_finite`).
+        """
         unknown = sorted(set(values) - set(self.fields))
         if unknown:
             raise KeyError(f"metrics {unknown} are not columns of {self.path} ({self.fields})")
+        require_finite(values, f"epoch {epoch}")
         row = {"epoch": str(int(epoch))}
         for key, value in values.items():
             row[key] = f"{float(value):.8g}"
@@ -82,8 +118,7 @@ class MetricsLogger:
             handle.flush()
         if self._writer is not None:
             for key, value in values.items():
-                if math.isfinite(float(value)):
-                    self._writer.add_scalar(key, float(value), int(epoch))
+                self._writer.add_scalar(key, float(value), int(epoch))
             self._writer.flush()
 
     def close(self) -> None:

@@ -23,6 +23,8 @@ errors weigh as position errors.
 from __future__ import annotations
 
 import logging
+import math
+import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal
@@ -52,6 +54,22 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 SplitName = Literal["train", "val", "test"]
+#: ``train.device`` values: ``auto``, ``cpu``, ``cuda``, ``cuda:N``, ``mps``.
+DEVICE_PATTERN = re.compile(r"^(auto|cpu|mps|cuda(:\d{1,3})?)$")
+_MAX_BATCH = 1 << 20
+
+
+def _check_int(key: str, value: int, low: int, high: int) -> None:
+    """``ValueError`` naming ``key`` unless ``low <= value <= high`` (an int, not a bool)."""
+    if not isinstance(value, int) or isinstance(value, bool) or not low <= value <= high:
+        raise ValueError(f"{key} must be an integer in [{low}, {high}], got {value!r}")
+
+
+def _check_float(key: str, value: float, low: float, high: float = math.inf) -> None:
+    """``ValueError`` naming ``key`` unless ``value`` is a finite number in ``[low, high]``."""
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+    if not ok or not math.isfinite(value) or not low <= value <= high:
+        raise ValueError(f"{key} must be a finite number in [{low:g}, {high:g}], got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -67,10 +85,11 @@ class DataConfig:
     num_workers: int = 0
 
     def __post_init__(self) -> None:
-        if self.train_stride < 1 or self.eval_stride < 1:
-            raise ValueError("data.train_stride and data.eval_stride must be >= 1")
-        if self.num_workers < 0:
-            raise ValueError("data.num_workers must be >= 0")
+        if not str(self.prepared).strip():
+            raise ValueError("data.prepared must name the prepared walking file")
+        _check_int("data.train_stride", self.train_stride, 1, 100_000)
+        _check_int("data.eval_stride", self.eval_stride, 1, 100_000)
+        _check_int("data.num_workers", self.num_workers, 0, 256)
 
 
 @dataclass(frozen=True)
@@ -84,8 +103,16 @@ class LossConfig:
     body_model_gender: str = "neutral"
 
     def __post_init__(self) -> None:
-        if self.w_mpjpe < 0 or self.w_mae < 0 or self.w_mpjpe + self.w_mae <= 0:
-            raise ValueError("loss weights must be >= 0 and not both zero")
+        _check_float("loss.w_mpjpe", self.w_mpjpe, 0.0, 1e6)
+        _check_float("loss.w_mae", self.w_mae, 0.0, 1e6)
+        if self.w_mpjpe + self.w_mae <= 0:
+            raise ValueError("loss.w_mpjpe and loss.w_mae must not both be zero")
+        _check_float("loss.skeleton_height_m", self.skeleton_height_m, 0.5, 2.5)
+        if self.body_model_gender not in ("neutral", "male", "female"):
+            raise ValueError(
+                "loss.body_model_gender must be 'neutral', 'male' or 'female', "
+                f"got {self.body_model_gender!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -99,10 +126,15 @@ class OptimConfig:
     grad_clip_norm: float = 1.0
 
     def __post_init__(self) -> None:
-        if not self.lr > 0 or self.lr_step_epochs < 1 or not 0 < self.lr_gamma <= 1:
-            raise ValueError("need lr > 0, lr_step_epochs >= 1 and 0 < lr_gamma <= 1")
-        if self.grad_clip_norm < 0:
-            raise ValueError("optim.grad_clip_norm must be >= 0 (0 disables clipping)")
+        _check_float("optim.lr", self.lr, 0.0, 10.0)
+        if self.lr == 0:
+            raise ValueError("optim.lr must be > 0")
+        _check_float("optim.weight_decay", self.weight_decay, 0.0, 10.0)
+        _check_int("optim.lr_step_epochs", self.lr_step_epochs, 1, 1_000_000)
+        _check_float("optim.lr_gamma", self.lr_gamma, 0.0, 1.0)
+        if self.lr_gamma == 0:
+            raise ValueError("optim.lr_gamma must be > 0")
+        _check_float("optim.grad_clip_norm (0 disables clipping)", self.grad_clip_norm, 0.0)
 
 
 @dataclass(frozen=True)
@@ -118,10 +150,15 @@ class TrainConfig:
     tensorboard: bool = True
 
     def __post_init__(self) -> None:
-        if self.epochs < 1 or self.batch_size < 1 or self.eval_batch_size < 1:
-            raise ValueError("train.epochs, train.batch_size, train.eval_batch_size must be >= 1")
-        if self.num_threads < 0:
-            raise ValueError("train.num_threads must be >= 0 (0: torch's default)")
+        _check_int("train.epochs", self.epochs, 1, 1_000_000)
+        _check_int("train.batch_size", self.batch_size, 1, _MAX_BATCH)
+        _check_int("train.eval_batch_size", self.eval_batch_size, 1, _MAX_BATCH)
+        _check_int("train.seed", self.seed, 0, 2**32 - 1)
+        _check_int("train.num_threads (0: torch's default)", self.num_threads, 0, 1024)
+        if not isinstance(self.device, str) or not DEVICE_PATTERN.match(self.device):
+            raise ValueError(
+                f"train.device must be auto, cpu, cuda, cuda:N or mps, got {self.device!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -133,8 +170,8 @@ class EvalConfig:
     batch_size: int = 2048
 
     def __post_init__(self) -> None:
-        if self.stride < 1 or self.batch_size < 1:
-            raise ValueError("eval.stride and eval.batch_size must be >= 1")
+        _check_int("eval.stride", self.stride, 1, 100_000)
+        _check_int("eval.batch_size", self.batch_size, 1, _MAX_BATCH)
 
 
 @dataclass(frozen=True)
@@ -151,7 +188,13 @@ class PredictorTrainingConfig:
     eval: EvalConfig = field(default_factory=EvalConfig)
 
     def __post_init__(self) -> None:
-        if not self.name or "/" in self.name or self.name.startswith("."):
+        if (
+            not isinstance(self.name, str)
+            or not self.name.strip()
+            or len(self.name) > 200
+            or any(c in self.name for c in "/\\\0")
+            or self.name.startswith(".")
+        ):
             raise ValueError(f"name must be a plain folder name, got {self.name!r}")
         if self.model.n_nodes != 3 * len(NODE_JOINTS):
             raise ValueError(
