@@ -1,4 +1,4 @@
-"""export/onnx.py: subprocess smoke tests of the predictor export (parity, sidecar, errors)."""
+"""export/to_onnx.py: subprocess smoke tests of the predictor export (parity, sidecar, errors)."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from gaitnet.training.checkpoint import save_checkpoint
 from gaitnet.training.predictor import PredictorTrainingConfig
 
 ROOT = Path(__file__).parents[1]
-SCRIPT = ROOT / "export" / "onnx.py"
+SCRIPT = ROOT / "export" / "to_onnx.py"
 
 
 @pytest.fixture(scope="module")
@@ -80,4 +80,5 @@ def test_export_errors_are_one_line(tmp_path: Path) -> None:
     assert done.stderr.startswith("error: checkpoint") and "does not exist" in done.stderr
     assert not (tmp_path / "x.onnx").exists()
     done = subprocess.run([sys.executable, str(SCRIPT)], capture_output=True, text=True)
-    assert done.returncode == 2 and "KIND" in done.stderr  # a subcommand is required
+    assert done.returncode == 1 and "KIND" in done.stderr  # a subcommand is required
+    assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr

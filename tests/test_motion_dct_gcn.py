@@ -248,8 +248,16 @@ def test_onnx_predictor_rejects_wrong_input(exported: tuple[DCTGCN, Path, float]
         predictor(np.zeros((10, 21), dtype=np.float32))
     with pytest.raises(OnnxInputError, match="dtype"):
         predictor(np.zeros((1, 10, 21), dtype=np.complex64))
-    with pytest.raises(FileNotFoundError):
+    with pytest.raises(OnnxInputError, match="does not exist"):
         OnnxPredictor(path.parent / "missing.onnx")
+    with pytest.raises(OnnxInputError, match=r"NaN/inf.*index \(1, 3, 4\)"):
+        x = np.zeros((2, 10, 21))
+        x[1, 3, 4] = np.nan
+        predictor(x)
+    with pytest.raises(OnnxInputError, match="beyond float32"):
+        predictor(np.full((1, 10, 21), 1e300))  # finite in float64, inf in float32
+    with pytest.raises(OnnxInputError, match="empty batch"):
+        predictor(np.zeros((0, 10, 21), dtype=np.float32))
 
 
 def test_export_refuses_when_parity_fails(tmp_path: Path) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import logging
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -28,7 +29,7 @@ from gaitnet.training.checkpoint import (
 )
 from gaitnet.training.distributed import dist_info_from_env
 from gaitnet.training.logs import RankZeroFilter
-from gaitnet.training.metrics import MetricsLogger, read_metrics
+from gaitnet.training.metrics import MetricsLogger, NonFiniteMetricError, read_metrics
 from gaitnet.training.predictor import PredictorTrainingConfig
 
 ROOT = Path(__file__).parents[1]
@@ -265,3 +266,110 @@ def test_every_predictor_config_key_is_documented() -> None:
     for cfg in sorted((ROOT / "configs" / "predictor").glob("*.yaml")):
         assert cfg.read_text().startswith("#"), f"{cfg.name} needs a header comment"
         load_config(PredictorTrainingConfig, cfg)
+
+
+def _draws(loader_gen: torch.Generator) -> list:
+    """One number from every generator a training run uses."""
+    import random
+
+    out = [random.random(), random.gauss(0, 1), float(np.random.rand()), float(np.random.randn()),
+           float(torch.rand(1)), float(torch.rand(1, generator=loader_gen))]  # fmt: skip
+    if torch.cuda.is_available():
+        for device in range(torch.cuda.device_count()):
+            out.append(float(torch.rand(1, device=f"cuda:{device}")))
+    return out
+
+
+def test_every_generator_state_is_saved_and_restored(tmp_path: Path) -> None:
+    """rng_state -> checkpoint file (weights_only) -> restore_rng_state gives the same draws
+    from python, numpy, torch CPU, every CUDA device (where there is one) and the loader."""
+    from gaitnet.training.seeding import RNG_KEYS, restore_rng_state, rng_state, seed_everything
+
+    seed_everything(5)
+    gen = torch.Generator().manual_seed(9)
+    _draws(gen)  # move every stream off its seed (and leave a cached gaussian in python/numpy)
+    state = rng_state(gen)
+    assert set(state) == set(RNG_KEYS)
+    assert len(state["cuda"]) == (torch.cuda.device_count() if torch.cuda.is_available() else 0)
+    ckpt = {k: 0 for k in CHECKPOINT_KEYS} | {"config": {}, "rng": [state]}
+    save_checkpoint(ckpt, tmp_path / "rng.pt")
+    expected = _draws(gen)
+    seed_everything(123)  # scramble every stream
+    gen.manual_seed(321)
+    scrambled = _draws(gen)
+    restore_rng_state(load_checkpoint(tmp_path / "rng.pt")["rng"][0], gen)
+    assert _draws(gen) == expected
+    # each stream on its own: every one of them differed after scrambling
+    assert all(a != b for a, b in zip(expected, scrambled, strict=True))
+    with pytest.raises(ValueError, match="rng state"):
+        restore_rng_state({**state, "numpy": {"keys": torch.zeros(3)}}, gen)
+    with pytest.raises(ValueError, match="keys"):
+        restore_rng_state({"torch": state["torch"]}, gen)
+
+
+_KILLED_SAVE = """
+import os, signal, sys, torch
+from gaitnet.io.atomic import atomic_save
+
+def save(tmp):
+    torch.save({"w": torch.zeros(250_000)}, tmp)  # a checkpoint-sized temp file, then a kill
+    os.kill(os.getpid(), signal.SIGKILL)
+
+atomic_save(sys.argv[1], save)
+"""
+
+
+def test_checkpoint_temp_of_a_killed_save_is_removed_by_the_next_save(tmp_path: Path) -> None:
+    target = tmp_path / "last.pt"
+    done = subprocess.run([sys.executable, "-c", _KILLED_SAVE, str(target)], capture_output=True)
+    assert done.returncode == -9  # SIGKILL mid-save
+    leftovers = [p for p in tmp_path.iterdir() if p.name.startswith(".last.pt.tmp-")]
+    assert len(leftovers) == 1 and leftovers[0].stat().st_size > 900_000
+    assert not target.exists()  # never a half-written checkpoint under the real name
+    state = {k: 0 for k in CHECKPOINT_KEYS} | {"config": {}}
+    save_checkpoint(state, target)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["last.pt"]
+    assert load_checkpoint(target)["epoch"] == 0
+
+
+def test_checkpoint_errors_are_one_line(tmp_path: Path) -> None:
+    import os
+
+    class Evil:
+        def __reduce__(self):
+            return (os.system, ("echo pwned",))
+
+    torch.save({k: 0 for k in CHECKPOINT_KEYS} | {"config": {}, "x": Evil()}, tmp_path / "e.pt")
+    with pytest.raises(CheckpointError) as info:
+        load_checkpoint(tmp_path / "e.pt")
+    message = str(info.value)
+    assert "\n" not in message and "system" in message and "refused" in message
+    assert "weights_only=False" not in message and "set to `False`" not in message
+    good = tmp_path / "g.pt"
+    save_checkpoint({k: 0 for k in CHECKPOINT_KEYS} | {"config": {}}, good)
+    (tmp_path / "t.pt").write_bytes(good.read_bytes()[:100])
+    (tmp_path / "z.pt").write_bytes(b"")
+    for name in ("t.pt", "z.pt"):
+        with pytest.raises(CheckpointError, match="cannot be read") as info:
+            load_checkpoint(tmp_path / name)
+        assert "\n" not in str(info.value)
+    with pytest.raises(CheckpointError, match="is a folder"):
+        load_checkpoint(tmp_path)
+    with pytest.raises(ValueError, match="non-finite"):
+        save_checkpoint({k: 0 for k in CHECKPOINT_KEYS} | {"config": {}, "val": math.nan},
+                        tmp_path / "nan.pt")  # fmt: skip
+    assert not (tmp_path / "nan.pt").exists()
+
+
+def test_metrics_without_tensorboard_and_never_nan(tmp_path: Path, monkeypatch, caplog) -> None:
+    monkeypatch.setitem(sys.modules, "torch.utils.tensorboard", None)  # as if not installed
+    with caplog.at_level(logging.WARNING, logger="gaitnet.training.metrics"):
+        m = MetricsLogger(tmp_path, ["train/loss"], tensorboard=True)
+    assert [r.getMessage() for r in caplog.records if "tensorboard" in r.getMessage()] != []
+    assert len(caplog.records) == 1
+    m.log(0, {"train/loss": 0.5})
+    with pytest.raises(NonFiniteMetricError, match="train/loss is nan"):
+        m.log(1, {"train/loss": math.nan})
+    m.close()
+    assert [r["epoch"] for r in read_metrics(tmp_path / "metrics.csv")] == ["0"]
+    assert not (tmp_path / "tb").exists()

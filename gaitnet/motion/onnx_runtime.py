@@ -3,7 +3,14 @@
 The exported graph is :meth:`gaitnet.motion.gcn.DCTGCN.forward`: input ``past_poses`` (batch,
 n_past, 21) float32 → output ``poses`` (batch, n_past + n_future, 21) float32, with a dynamic
 batch dimension. The export is refused (and nothing is written) unless onnxruntime reproduces
-PyTorch to within ``atol`` on random inputs of several batch sizes.
+PyTorch to within ``atol`` on random inputs of several batch sizes; the file is written
+atomically (:func:`gaitnet.io.atomic.atomic_save`).
+
+:class:`OnnxPredictor` checks what it is given: a missing, unreadable or foreign ``.onnx`` file,
+and an input of the wrong rank, shape or dtype, an empty batch or a NaN/inf (also one that
+appears when float64 values beyond float32's range are cast), are one-line
+:class:`OnnxInputError` s (an :class:`~gaitnet.errors.InputError`) naming the file and the
+input; a non-finite output is never returned.
 """
 
 from __future__ import annotations
@@ -11,8 +18,6 @@ from __future__ import annotations
 import contextlib
 import copy
 import io
-import os
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,7 +26,8 @@ import numpy as np
 import onnxruntime as ort
 import torch
 
-from gaitnet.errors import GaitnetError
+from gaitnet.errors import InputError
+from gaitnet.io.atomic import atomic_save
 from gaitnet.motion.gcn import DCTGCN
 
 __all__ = [
@@ -38,8 +44,9 @@ INPUT_NAME = "past_poses"
 OUTPUT_NAME = "poses"
 
 
-class OnnxInputError(GaitnetError):
-    """An input does not match what the ONNX model expects; names the model file and shapes."""
+class OnnxInputError(InputError):
+    """An ONNX model file is unusable or an input does not match what it expects; the one-line
+    message names the model file and the input."""
 
 
 class OnnxParityError(RuntimeError):
@@ -54,6 +61,15 @@ class ExportReport:
     opset: int
     max_abs_diff: float
     batch_sizes: tuple[int, ...]
+
+
+def _is_ort_error(exc: BaseException) -> bool:
+    """onnxruntime's own exceptions (``onnxruntime.capi...Fail``, ``InvalidProtobuf``, ...)."""
+    return type(exc).__module__.startswith("onnxruntime")
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())[:300]
 
 
 def _session(path: Path, threads: int) -> ort.InferenceSession:
@@ -85,17 +101,16 @@ def export_predictor_onnx(
     cfg = model.config
     net = copy.deepcopy(model).to("cpu", torch.float32).eval()
     example = torch.zeros(2, cfg.n_past, cfg.n_nodes)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".onnx", dir=path.parent)
-    os.close(fd)
-    tmp = Path(tmp_name)
-    try:
+    worst = 0.0
+
+    def export_and_check(tmp_name: str) -> None:
+        nonlocal worst
         # The exporter reports progress on stdout; library code stays quiet.
         with contextlib.redirect_stdout(io.StringIO()):
             torch.onnx.export(
                 net,
                 (example,),
-                str(tmp),
+                tmp_name,
                 input_names=[INPUT_NAME],
                 output_names=[OUTPUT_NAME],
                 opset_version=int(opset),
@@ -104,9 +119,8 @@ def export_predictor_onnx(
                 dynamic_shapes=({0: torch.export.Dim("batch")},),
                 verbose=False,
             )
-        session = _session(tmp, threads=1)
+        session = _session(Path(tmp_name), threads=1)
         gen = torch.Generator().manual_seed(seed)
-        worst = 0.0
         for b in batch_sizes:
             x = torch.randn(int(b), cfg.n_past, cfg.n_nodes, generator=gen)
             with torch.no_grad():
@@ -122,11 +136,8 @@ def export_predictor_onnx(
             raise OnnxParityError(
                 f"ONNX export {path}: max |onnxruntime - torch| = {worst:.3g} exceeds {atol:g}"
             )
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
-        raise
+
+    atomic_save(path, export_and_check)
     return ExportReport(
         path=path, opset=int(opset), max_abs_diff=worst, batch_sizes=tuple(batch_sizes)
     )
@@ -143,9 +154,20 @@ class OnnxPredictor:
 
     def __init__(self, path: str | Path, threads: int = 1):
         self.path = Path(path)
+        if not isinstance(threads, int) or isinstance(threads, bool) or not 0 <= threads <= 1024:
+            raise OnnxInputError(f"ONNX threads must be an integer in [0, 1024], got {threads!r}")
+        if self.path.is_dir():
+            raise OnnxInputError(f"ONNX model {self.path} is a folder, expected an .onnx file")
         if not self.path.is_file():
-            raise FileNotFoundError(f"ONNX model {self.path} does not exist")
-        self.session = _session(self.path, threads)
+            raise OnnxInputError(f"ONNX model {self.path} does not exist")
+        try:
+            self.session = _session(self.path, threads)
+        except Exception as exc:
+            if not _is_ort_error(exc):
+                raise
+            raise OnnxInputError(
+                f"ONNX model {self.path} cannot be loaded ({_one_line(exc)})"
+            ) from exc
         inputs = self.session.get_inputs()
         if len(inputs) != 1:
             names = [i.name for i in inputs]
@@ -172,7 +194,12 @@ class OnnxPredictor:
         return d if isinstance(d, int) else None
 
     def _check(self, past: np.ndarray) -> np.ndarray:
-        past = np.asarray(past)
+        try:
+            past = np.asarray(past)
+        except (ValueError, TypeError) as exc:  # ragged nested lists
+            raise OnnxInputError(
+                f"ONNX model {self.path}: input {self.input_name!r} is not an array ({exc})"
+            ) from exc
         if not (np.issubdtype(past.dtype, np.floating) or np.issubdtype(past.dtype, np.integer)):
             raise OnnxInputError(
                 f"ONNX model {self.path}: input {self.input_name!r} needs real numbers (fed as "
@@ -188,12 +215,37 @@ class OnnxPredictor:
                 f"ONNX model {self.path}: input {self.input_name!r} expects shape {shown}, "
                 f"given {past.shape}"
             )
-        return np.ascontiguousarray(past, dtype=np.float32)
+        if past.shape[0] == 0:
+            raise OnnxInputError(
+                f"ONNX model {self.path}: input {self.input_name!r} has an empty batch"
+            )
+        with np.errstate(over="ignore", invalid="ignore"):
+            feed = np.ascontiguousarray(past, dtype=np.float32)
+        bad = ~np.isfinite(feed)
+        if bad.any():
+            first = tuple(int(i) for i in np.argwhere(bad)[0])
+            raise OnnxInputError(
+                f"ONNX model {self.path}: input {self.input_name!r} holds NaN/inf or values "
+                f"beyond float32's range, first at index {first}"
+            )
+        return feed
 
     def run(self, past: np.ndarray) -> dict[str, np.ndarray]:
-        """All outputs by name for ``past`` (batch, n_past, nodes)."""
+        """All outputs by name for ``past`` (batch, n_past, nodes); every value finite."""
         feed = {self.input_name: self._check(past)}
-        return dict(zip(self.output_names, self.session.run(self.output_names, feed), strict=True))
+        try:
+            outputs = self.session.run(self.output_names, feed)
+        except Exception as exc:
+            if not _is_ort_error(exc):
+                raise
+            raise OnnxInputError(f"ONNX model {self.path} failed ({_one_line(exc)})") from exc
+        for name, value in zip(self.output_names, outputs, strict=True):
+            if not np.all(np.isfinite(value)):
+                raise OnnxInputError(
+                    f"ONNX model {self.path}: output {name!r} is not finite for a finite input "
+                    "(a broken model file?)"
+                )
+        return dict(zip(self.output_names, outputs, strict=True))
 
     def __call__(self, past: np.ndarray) -> np.ndarray:
         """The full sequence (batch, n_past + n_future, nodes): the first output."""

@@ -1,6 +1,6 @@
 """Export trained models to ONNX with a parity check against PyTorch.
 
-    python export/onnx.py predictor --checkpoint runs/predictor/NAME/best.pt \
+    python export/to_onnx.py predictor --checkpoint runs/predictor/NAME/best.pt \
         --out models/predictor/NAME.onnx
 
 ``predictor``: the DCT-GCN motion predictor. The architecture comes from the checkpoint's
@@ -16,21 +16,15 @@ Each model kind is a subcommand with its own ``run_*`` function, so further kind
 
 from __future__ import annotations
 
+import argparse
+import hashlib
+import json
 import sys
 from pathlib import Path
+from typing import Any, NoReturn
 
-# This script is named like the ``onnx`` package: keep its own folder off the import path, or
-# ``import onnx`` (inside torch.onnx) would import this file.
-if sys.path and Path(sys.path[0] or ".").resolve() == Path(__file__).resolve().parent:
-    sys.path.pop(0)
-
-import argparse  # noqa: E402
-import hashlib  # noqa: E402
-import json  # noqa: E402
-from typing import Any  # noqa: E402
-
-from gaitnet.errors import GaitnetError  # noqa: E402
-from gaitnet.io.atomic import atomic_write_text  # noqa: E402
+from gaitnet.errors import GaitnetError, InputError
+from gaitnet.io.atomic import atomic_write_text
 
 
 def run_predictor(args: argparse.Namespace) -> int:
@@ -38,14 +32,14 @@ def run_predictor(args: argparse.Namespace) -> int:
     from gaitnet.config import parse_config
     from gaitnet.motion.gcn import DCTGCN, NODE_JOINT_NAMES, NODE_JOINTS
     from gaitnet.motion.onnx_runtime import INPUT_NAME, OUTPUT_NAME, export_predictor_onnx
-    from gaitnet.training.checkpoint import load_checkpoint
+    from gaitnet.training.checkpoint import load_checkpoint, load_state
     from gaitnet.training.predictor import PredictorTrainingConfig
 
     checkpoint = Path(args.checkpoint)
     ckpt = load_checkpoint(checkpoint)
     cfg = parse_config(PredictorTrainingConfig, ckpt["config"], f"{checkpoint} (config)")
     model = DCTGCN(cfg.model)
-    model.load_state_dict(ckpt["model"])
+    load_state(model, ckpt["model"], checkpoint, "model")
     out = Path(args.out)
     report = export_predictor_onnx(model, out, opset=args.opset, atol=args.atol)
     print(f"parity: max |onnxruntime - torch| = {report.max_abs_diff:.3g} (atol {args.atol:g}, "
@@ -55,7 +49,12 @@ def run_predictor(args: argparse.Namespace) -> int:
     eval_file = checkpoint.parent / "eval.json"
     metrics: Any = None
     if eval_file.is_file():
-        full = json.loads(eval_file.read_text(encoding="utf-8"))
+        try:
+            full = json.loads(eval_file.read_text(encoding="utf-8"))
+        except (ValueError, OSError) as exc:
+            raise InputError(f"{eval_file}: not a readable eval.json ({exc})") from exc
+        if not isinstance(full, dict):
+            raise InputError(f"{eval_file}: expected a JSON object")
         metrics = {k: full[k] for k in full if k not in ("config",)}
     sidecar = {
         "name": cfg.name,
@@ -101,8 +100,15 @@ def run_predictor(args: argparse.Namespace) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """Usage errors are bad input too: one line (no usage block) and exit status 1."""
+
+    def error(self, message: str) -> NoReturn:
+        raise InputError(f"{self.prog}: {message} (see --help)")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = _Parser(prog="export/to_onnx.py", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="kind", required=True, metavar="KIND")
     p = sub.add_parser("predictor", help="DCT-GCN motion predictor checkpoint → ONNX")
     p.add_argument("--checkpoint", required=True, help="best.pt / last.pt of train/predictor.py")
@@ -114,14 +120,18 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    """Run the exporter: bad input (gaitnet's errors, ``OSError``) and a failed parity check
+    are one line on stderr and exit status 1; anything else is a bug with a traceback."""
+    from gaitnet.motion.onnx_runtime import OnnxParityError
+
     try:
+        args = build_parser().parse_args(argv)
         return args.func(args)
-    except GaitnetError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+    except (GaitnetError, OSError) as exc:
+        print(f"error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 1
-    except RuntimeError as exc:  # OnnxParityError and exporter failures
-        print(f"error: export failed: {exc}", file=sys.stderr)
+    except OnnxParityError as exc:
+        print(f"error: export failed: {' '.join(str(exc).split())}", file=sys.stderr)
         return 1
 
 
