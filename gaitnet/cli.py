@@ -37,8 +37,6 @@ from gaitnet.errors import GaitnetError
 log = logging.getLogger("gaitnet")
 
 PROG = "gaitnet"
-SEED_LIMIT = 2**32  # numpy's SeedSequence accepts any non-negative int; we promise 32 bits
-PITCH_RANGE_DEG = (10.0, 89.0)  # the simulator's mount.pitch_deg range (gaitnet/sim/rig.py)
 EXIT_USER_ERROR = 1
 EXIT_BUG = 2
 EXIT_SIGINT = 130  # 128 + SIGINT, the shell's convention
@@ -67,34 +65,20 @@ class Parser(argparse.ArgumentParser):
 # --- option value types: every value is validated where it enters --------------------------
 
 
-def _seed(text: str) -> int:
+def _integer(text: str) -> int:
     try:
-        value = int(text)
+        return int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if not 0 <= value < SEED_LIMIT:
-        raise argparse.ArgumentTypeError(f"must be within 0 ≤ seed < 2**32, got {value}")
-    return value
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
-
-
-def _pitch_deg(text: str) -> float:
+def _finite_float(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of degrees, got {text!r}") from None
-    lo, hi = PITCH_RANGE_DEG
-    if not math.isfinite(value) or not lo <= value <= hi:
-        raise argparse.ArgumentTypeError(f"must be within {lo:g}–{hi:g}°, got {text}")
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
     return value
 
 
@@ -201,18 +185,18 @@ def _cmd_simulate_dataset(args: argparse.Namespace) -> int:
     from gaitnet.sim.config import SimConfig
     from gaitnet.sim.dataset import simulate_dataset
 
-    if args.pitch_min > args.pitch_max:
+    if (args.pitch_min is None) != (args.pitch_max is None):
         raise UsageError(
-            f"{PROG} simulate-dataset",
-            f"--pitch-min {args.pitch_min:g} is larger than --pitch-max {args.pitch_max:g}",
+            f"{PROG} simulate-dataset", "give --pitch-min and --pitch-max together (or neither)"
         )
+    pitch_range = None if args.pitch_min is None else (args.pitch_min, args.pitch_max)
     cfg = load_config(SimConfig, args.config, args.overrides)
     result = simulate_dataset(
         cfg,
         args.n,
         args.seed,
         args.out,
-        pitch_range_deg=(args.pitch_min, args.pitch_max),
+        pitch_range_deg=pitch_range,
         labelme=args.labelme,
         overwrite=args.overwrite,
         progress=lambda it, total: tqdm(it, total=total, desc="rendering", unit="frame"),
@@ -253,7 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Validate a session: session.yaml, IMU ordering and gaps, every frame's "
         "PNG header (size, type, truncation); with --decode also decode every frame.",
     )
-    p.add_argument("session", help="session folder or RealSense .bag file")
+    p.add_argument("session", metavar="SESSION", help="session folder or RealSense .bag file")
     p.add_argument("--decode", action="store_true", help="decode every frame (slower)")
     p.set_defaults(func=_cmd_check)
 
@@ -263,9 +247,12 @@ def build_parser() -> argparse.ArgumentParser:
         description="Read a recording through the session reader and write a session folder "
         "v1 (docs/session-format.md). IMU streams are merged onto common timestamps.",
     )
-    p.add_argument("input", help="RealSense .bag file or session folder")
+    p.add_argument("input", metavar="INPUT", help="RealSense .bag file or session folder")
     p.add_argument(
-        "output", type=_output_folder, help="output session folder (must not exist or be empty)"
+        "output",
+        metavar="OUTPUT",
+        type=_output_folder,
+        help="output session folder (must not exist or be empty)",
     )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.set_defaults(func=_cmd_convert)
@@ -276,9 +263,19 @@ def build_parser() -> argparse.ArgumentParser:
         description="Write a session folder plus groundtruth/ (docs/simulator.md). Same seed "
         "and config give byte-identical output.",
     )
-    p.add_argument("--config", default=None, help="YAML config (default: built-in defaults)")
-    p.add_argument("--seed", type=_seed, default=0, help="random seed, 0 ≤ N < 2**32 (default 0)")
-    p.add_argument("--out", type=_output_folder, required=True, help="output session folder")
+    p.add_argument(
+        "--config", metavar="FILE", default=None, help="YAML config (default: built-in defaults)"
+    )
+    p.add_argument(
+        "--seed",
+        metavar="N",
+        type=_integer,
+        default=0,
+        help="random seed, 0 ≤ N < 2**32 (default 0)",
+    )
+    p.add_argument(
+        "--out", metavar="DIR", type=_output_folder, required=True, help="output session folder"
+    )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides")
     p.set_defaults(func=_cmd_simulate)
@@ -289,23 +286,31 @@ def build_parser() -> argparse.ArgumentParser:
         description="Each frame has its own random subject, floor, lighting and camera pitch. "
         "Layout: see gaitnet/sim/dataset.py and docs/simulator.md.",
     )
-    p.add_argument("--config", default=None, help="YAML simulator config (default: built-in)")
-    p.add_argument("--n", type=_positive_int, required=True, help="number of frames (≥ 1)")
-    p.add_argument("--seed", type=_seed, default=0, help="random seed, 0 ≤ N < 2**32 (default 0)")
-    p.add_argument("--out", type=_output_folder, required=True, help="output folder")
-    p.add_argument("--labelme", action="store_true", help="also write labelme JSON polygons")
-    lo, hi = PITCH_RANGE_DEG
     p.add_argument(
-        "--pitch-min",
-        type=_pitch_deg,
-        default=55.0,
-        help=f"smallest camera pitch [deg], {lo:g}–{hi:g} (default 55)",
+        "--config", metavar="FILE", default=None, help="YAML simulator config (default: built-in)"
     )
     p.add_argument(
-        "--pitch-max",
-        type=_pitch_deg,
-        default=75.0,
-        help=f"largest camera pitch [deg], {lo:g}–{hi:g} (default 75)",
+        "--n", metavar="N", type=_integer, required=True, help="number of frames, 1–1000000"
+    )
+    p.add_argument(
+        "--seed",
+        metavar="N",
+        type=_integer,
+        default=0,
+        help="random seed, 0 ≤ N < 2**32 (default 0)",
+    )
+    p.add_argument("--out", metavar="DIR", type=_output_folder, required=True, help="output folder")
+    p.add_argument("--labelme", action="store_true", help="also write labelme JSON polygons")
+    p.add_argument(
+        "--pitch-min",
+        metavar="DEG",
+        type=_finite_float,
+        default=None,
+        help="draw each frame's camera pitch from [--pitch-min, --pitch-max], within 10–89° "
+        "(default: the config's mount.pitch_deg, a number or a [lo, hi] range)",
+    )
+    p.add_argument(
+        "--pitch-max", metavar="DEG", type=_finite_float, default=None, help="see --pitch-min"
     )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides")
@@ -317,10 +322,23 @@ def build_parser() -> argparse.ArgumentParser:
         description="Reports the DESIGN.md metric keys the inputs allow: mpjpe_m from "
         "RESULT_DIR/joints.npz, body_ate_m from RESULT_DIR/camera_frames.tum.",
     )
-    p.add_argument("result_dir", help="folder with results (joints.npz, camera_frames.tum)")
-    p.add_argument("--session", required=True, help="simulated session folder (groundtruth/)")
     p.add_argument(
-        "--json", type=_output_file, default=None, help="write the metrics to this JSON file"
+        "result_dir",
+        metavar="RESULT_DIR",
+        help="folder with results (joints.npz, camera_frames.tum)",
+    )
+    p.add_argument(
+        "--session",
+        metavar="SESSION",
+        required=True,
+        help="simulated session folder (groundtruth/)",
+    )
+    p.add_argument(
+        "--json",
+        metavar="OUT.json",
+        type=_output_file,
+        default=None,
+        help="write the metrics to this JSON file",
     )
     p.set_defaults(func=_cmd_evaluate)
 

@@ -44,7 +44,7 @@ CASES: list[tuple[str, list[str], str]] = [
     ("check-flag-value", ["check", "{session}", "--decode=yes"], "ignored explicit argument"),
     # convert
     ("convert-missing-args", ["convert"], "gaitnet convert: error: the following arguments"),
-    ("convert-missing-output", ["convert", "{session}"], "required: output"),
+    ("convert-missing-output", ["convert", "{session}"], "required: OUTPUT"),
     ("convert-missing-input", ["convert", "{missing}", OUT], "{missing}"),
     ("convert-input-file", ["convert", "{file}", OUT], "not a session folder"),
     ("convert-output-file", ["convert", "{session}", "{file}"], "exists and is not a folder"),
@@ -54,8 +54,16 @@ CASES: list[tuple[str, list[str], str]] = [
     ("convert-unknown-option", ["convert", "{session}", OUT, "--force"], "unrecognized"),
     # simulate
     ("simulate-missing-out", ["simulate"], "required: --out"),
-    ("simulate-seed-negative", ["simulate", "--out", OUT, "--seed", "-1"], "argument --seed"),
-    ("simulate-seed-2**32", ["simulate", "--out", OUT, "--seed", str(2**32)], "2**32"),
+    (
+        "simulate-seed-negative",
+        ["simulate", "--out", OUT, "--seed", "-1"],
+        "seed must be within 0–4294967295",
+    ),
+    (
+        "simulate-seed-2**32",
+        ["simulate", "--out", OUT, "--seed", str(2**32)],
+        "seed must be within",
+    ),
     ("simulate-seed-text", ["simulate", "--out", OUT, "--seed", "abc"], "expected an integer"),
     ("simulate-seed-float", ["simulate", "--out", OUT, "--seed", "1.5"], "argument --seed"),
     ("simulate-seed-empty", ["simulate", "--out", OUT, "--seed", ""], "argument --seed"),
@@ -77,19 +85,23 @@ CASES: list[tuple[str, list[str], str]] = [
     # simulate-dataset
     ("dataset-missing-n", ["simulate-dataset", "--out", OUT], "required: --n"),
     ("dataset-missing-out", ["simulate-dataset", "--n", "1"], "required: --out"),
-    ("dataset-n-zero", ["simulate-dataset", "--n", "0", "--out", OUT], "at least 1"),
-    ("dataset-n-negative", ["simulate-dataset", "--n", "-3", "--out", OUT], "argument --n"),
+    (
+        "dataset-n-zero",
+        ["simulate-dataset", "--n", "0", "--out", OUT],
+        "--n (number of frames) must be within 1–1000000",
+    ),
+    ("dataset-n-negative", ["simulate-dataset", "--n", "-3", "--out", OUT], "--n (number"),
     ("dataset-n-text", ["simulate-dataset", "--n", "ten", "--out", OUT], "expected an integer"),
     ("dataset-n-float", ["simulate-dataset", "--n", "2.5", "--out", OUT], "argument --n"),
     (
         "dataset-seed-negative",
         ["simulate-dataset", "--n", "1", "--out", OUT, "--seed", "-1"],
-        "argument --seed",
+        "--seed must be within",
     ),
     (
         "dataset-pitch-order",
         ["simulate-dataset", "--n", "1", "--out", OUT, "--pitch-min", "80", "--pitch-max", "60"],
-        "larger than --pitch-max",
+        "--pitch-min/--pitch-max must satisfy 10 ≤ min ≤ max ≤ 89°",
     ),
     (
         "dataset-pitch-nan",
@@ -103,18 +115,23 @@ CASES: list[tuple[str, list[str], str]] = [
     ),
     (
         "dataset-pitch-low",
-        ["simulate-dataset", "--n", "1", "--out", OUT, "--pitch-min", "5"],
-        "10–89",
+        ["simulate-dataset", "--n", "1", "--out", OUT, "--pitch-min", "5", "--pitch-max", "60"],
+        "10 ≤ min",
     ),
     (
         "dataset-pitch-high",
-        ["simulate-dataset", "--n", "1", "--out", OUT, "--pitch-max", "95"],
-        "10–89",
+        ["simulate-dataset", "--n", "1", "--out", OUT, "--pitch-min", "60", "--pitch-max", "95"],
+        "max ≤ 89°",
     ),
     (
         "dataset-pitch-text",
         ["simulate-dataset", "--n", "1", "--out", OUT, "--pitch-max", "x"],
         "expected a number",
+    ),
+    (
+        "dataset-pitch-alone",
+        ["simulate-dataset", "--n", "1", "--out", OUT, "--pitch-min", "60"],
+        "together",
     ),
     ("dataset-out-file", ["simulate-dataset", "--n", "1", "--out", "{file}"], "not a folder"),
     (
