@@ -9,8 +9,10 @@ times, which count from the start of the recording), tf extrinsics stored as
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import struct
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 from rosbags.rosbag1 import Writer
@@ -90,7 +92,7 @@ def _header(store, seq: int, t_ns: int):
     return Header(seq=seq, stamp=Time(sec=t_ns // 10**9, nanosec=t_ns % 10**9), frame_id="")
 
 
-def _camera_info(store, c: CameraIntrinsics):
+def _camera_info(store, c: CameraIntrinsics | SimpleNamespace):
     CameraInfo = store.types["sensor_msgs/msg/CameraInfo"]
     RegionOfInterest = store.types["sensor_msgs/msg/RegionOfInterest"]
     K = np.array([c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1], dtype=np.float64)
@@ -110,11 +112,11 @@ def _camera_info(store, c: CameraIntrinsics):
     )
 
 
-def _transform(store, T: np.ndarray):
+def _transform(store, T: np.ndarray, zero_rotation: bool = False):
     Transform = store.types["geometry_msgs/msg/Transform"]
     Vector3 = store.types["geometry_msgs/msg/Vector3"]
     Quaternion = store.types["geometry_msgs/msg/Quaternion"]
-    x, y, z, w = Rotation.from_matrix(T[:3, :3]).as_quat()
+    x, y, z, w = (0.0,) * 4 if zero_rotation else Rotation.from_matrix(T[:3, :3]).as_quat()
     return Transform(
         translation=Vector3(x=float(T[0, 3]), y=float(T[1, 3]), z=float(T[2, 3])),
         rotation=Quaternion(x=float(x), y=float(y), z=float(z), w=float(w)),
@@ -184,14 +186,23 @@ def write_sdk_bag(
     unpaired: bool = False,
     compression: bool = False,
     chunk_threshold: int | None = None,
+    no_data_pixels: bool = False,
+    timestamp_domains: dict[str, str] | None = None,
+    fault: str | None = None,
 ) -> BagSpec:
     """Write an SDK-style bag; see :class:`BagSpec` for what ends up in it.
 
     ``aligned``: depth has colour's size and intrinsics; otherwise depth is a smaller native
     image (``DEPTH_INTR_NATIVE``) of a tilted plane. ``unpaired``: add a colour frame without
     depth (at the end) and a depth frame without colour (before the first). ``chunk_threshold``
-    small values spread messages over many chunks.
+    small values spread messages over many chunks. ``no_data_pixels``: some depth pixels are
+    65535 (the SDK's "no data"). ``timestamp_domains``: write per-frame metadata topics with
+    these ``timestamp_domain`` values (keys ``Color``, ``Depth``, ``Accel``, ``Gyro``; a value
+    ``"A->B"`` switches from A to B halfway). ``fault``: one of :data:`FAULTS`, a damage that
+    the reader must refuse.
     """
+    if fault is not None and fault not in FAULTS:
+        raise ValueError(f"unknown fault {fault!r}")
     store = _typestore()
     spec = BagSpec(path=Path(path), depth_units=depth_units)
     spec.depth_intr = COLOR_INTR if aligned else DEPTH_INTR_NATIVE
@@ -216,7 +227,14 @@ def write_sdk_bag(
             z = plane_depth(d, normal=(0.1, -0.15, 1.0), d=1.6 + 0.05 * k)
             raw = np.round(z / units).astype(np.uint16)
             raw[:2, :3] = 0  # a hole
+        if no_data_pixels:
+            raw[-3:, -5:] = 65535
         spec.depth_raw.append(raw)
+    if fault == "color_size_change":
+        for i in range(n_color // 2, n_color):
+            spec.rgb[i] = spec.rgb[i][::2, ::2].copy()
+    if fault == "depth_size_change":
+        spec.depth_raw[-1] = spec.depth_raw[-1][:-2].copy()
 
     # -- IMU -----------------------------------------------------------------------------
     span = n_color * COLOR_PERIOD_NS
@@ -227,13 +245,26 @@ def write_sdk_bag(
     t_gyr = np.insert(t_gyr, 20, t_gyr[20])
     spec.t_acc, spec.acc = t_acc.astype(np.int64), acc_signal(t_acc)
     spec.t_gyr, spec.gyr = t_gyr.astype(np.int64), gyr_signal(t_gyr)
+    if fault == "imu_spike":
+        spec.gyr[7] = (1.0e6, 0.0, 0.0)
+    if fault == "imu_nan":
+        spec.acc[5, 1] = np.nan
 
     spec.tf = {
         "Depth": np.eye(4),
-        "Color": T_COLOR_FROM_DEPTH,
+        "Color": T_COLOR_FROM_DEPTH.copy(),
         "Accel": T_IMU_FROM_DEPTH,
         "Gyro": T_IMU_FROM_DEPTH,
     }
+    if fault == "tf_nan":
+        spec.tf["Color"][1, 3] = np.nan
+    color_intr = c
+    if fault == "intrinsics_nan":
+        color_intr = _Intr(c, cx=float("nan"))
+    if fault == "distortion_inf":
+        color_intr = _Intr(c, distortion=(float("inf"), 0.0, 0.0, 0.0, 0.0))
+    if fault == "depth_units_nan":
+        depth_units = float("nan")
 
     # -- write ---------------------------------------------------------------------------
     writer = Writer(spec.path)
@@ -298,13 +329,13 @@ def write_sdk_bag(
                 f"{color_s}/Color_0/info/camera_info",
                 "sensor_msgs/msg/CameraInfo",
                 0,
-                _camera_info(store, c),
+                _camera_info(store, color_intr),
             )
             write(
                 f"{color_s}/Color_0/tf/0",
                 "geometry_msgs/msg/Transform",
                 0,
-                _transform(store, spec.tf["Color"]),
+                _transform(store, spec.tf["Color"], zero_rotation=fault == "tf_zero_quaternion"),
             )
         if include_imu:
             ImuIntrinsic = store.types["realsense_msgs/msg/ImuIntrinsic"]
@@ -343,26 +374,130 @@ def write_sdk_bag(
         events: list[tuple[int, int, str, object]] = []
         if include_color:
             for i, t in enumerate(spec.color_t_ns):
-                msg = _image(store, i, t, spec.rgb[i], color_encoding)
-                if color_encoding in ("bgr8",):
-                    msg = _image(store, i, t, spec.rgb[i][:, :, ::-1], color_encoding)
+                pixels = spec.rgb[i][:, :, ::-1] if color_encoding == "bgr8" else spec.rgb[i]
+                stamp = t + (3_600 * 10**9 if fault == "color_stamp_garbled" and i == 2 else 0)
+                msg = _image(store, i, stamp, pixels, color_encoding)
+                if fault == "color_stamp_nsec" and i == 1:
+                    msg.header.stamp.nanosec = 1_500_000_000
+                if fault in ("color_data_short", "color_data_long") and i == 2:
+                    data = msg.data[:-7] if fault == "color_data_short" else msg.data
+                    if fault == "color_data_long":
+                        data = np.concatenate([data, np.zeros(64, np.uint8)])
+                    msg = replace(msg, data=data)
+                if fault == "color_step_short" and i == 3:
+                    msg = replace(msg, step=msg.step - 3)
+                if fault == "color_encoding_change" and i == 3:
+                    msg = replace(msg, encoding="bgr8")
                 events.append((rec_time(t) + 2_000_000, 0, f"{color_s}/Color_0/image/data", msg))
         if include_depth:
             for i, t in enumerate(spec.depth_t_ns):
                 msg = _image(store, i, t, spec.depth_raw[i], "mono16")
                 events.append((rec_time(t) + 1_000_000, 1, f"{depth_s}/Depth_0/image/data", msg))
+        if timestamp_domains:
+            for kind, sensor, times in (
+                ("Color", color_s, spec.color_t_ns),
+                ("Depth", depth_s, spec.depth_t_ns),
+                ("Accel", imu_s, spec.t_acc),
+                ("Gyro", imu_s, spec.t_gyr),
+            ):
+                if kind not in timestamp_domains:
+                    continue
+                first, _, last = timestamp_domains[kind].partition("->")
+                medium = "image" if kind in ("Color", "Depth") else "imu"
+                topic = f"{sensor}/{kind}_0/{medium}/metadata"
+                for i, t in enumerate(times):
+                    domain = last if last and i >= len(times) // 2 else first
+                    for key, value in (
+                        ("system_time", str(1_700_000_000_000 + i)),
+                        ("timestamp_domain", domain),
+                        ("Frame Counter", str(i)),
+                    ):
+                        events.append(
+                            (rec_time(int(t)) + 2_000_001, 4, topic, KeyValue(key=key, value=value))
+                        )
         if include_imu:
             for i, t in enumerate(spec.t_acc):
                 msg = _imu(store, i, int(t), accel=spec.acc[i])
                 events.append((rec_time(int(t)) + 300_000, 2, f"{imu_s}/Accel_0/imu/data", msg))
             for i, t in enumerate(spec.t_gyr):
-                msg = _imu(store, i, int(t), gyro=spec.gyr[i])
+                garbled = 3_600 * 10**9 if fault == "imu_stamp_garbled" and i == 12 else 0
+                msg = _imu(store, i, int(t) + garbled, gyro=spec.gyr[i])
                 events.append((rec_time(int(t)) + 300_000, 3, f"{imu_s}/Gyro_0/imu/data", msg))
         events.sort(key=lambda e: (e[0], e[1]))
         types = {"image": "sensor_msgs/msg/Image", "imu": "sensor_msgs/msg/Imu"}
+        cut_done = False
         for t_rec, _, topic, msg in events:
-            write(topic, types[topic.split("/")[-2]], max(t_rec, 1), msg)
+            if topic.endswith("/metadata"):
+                write(topic, "diagnostic_msgs/msg/KeyValue", max(t_rec, 1), msg)
+                continue
+            msgtype = types[topic.split("/")[-2]]
+            if fault == "color_payload_cut" and "Color" in topic and not cut_done:
+                cut_done = True
+                if topic not in conns:
+                    conns[topic] = writer.add_connection(topic, msgtype, typestore=store)
+                raw = store.serialize_ros1(msg, msgtype)
+                writer.write(conns[topic], max(t_rec, 1), raw[: len(raw) // 2])
+                continue
+            write(topic, msgtype, max(t_rec, 1), msg)
     return spec
+
+
+FAULTS = (
+    "color_size_change",
+    "depth_size_change",
+    "imu_spike",
+    "imu_nan",
+    "imu_stamp_garbled",
+    "tf_nan",
+    "tf_zero_quaternion",
+    "intrinsics_nan",
+    "distortion_inf",
+    "depth_units_nan",
+    "color_stamp_garbled",
+    "color_stamp_nsec",
+    "color_data_short",
+    "color_data_long",
+    "color_step_short",
+    "color_encoding_change",
+    "color_payload_cut",
+)
+"""Damages :func:`write_sdk_bag` can build into a bag (each must make the reader refuse it)."""
+
+
+def _Intr(c: CameraIntrinsics, **changes) -> SimpleNamespace:
+    """Intrinsics-like values that may be invalid (CameraIntrinsics itself refuses NaN)."""
+    fields = {f: getattr(c, f) for f in ("width", "height", "fx", "fy", "cx", "cy", "distortion")}
+    return SimpleNamespace(**(fields | changes))
+
+
+def bag_header_fields(path: Path) -> tuple[int, int, dict[bytes, bytes]]:
+    """(start, end) byte range of the bag header record's fields and the fields themselves."""
+    data = path.read_bytes()
+    pos = data.index(b"\n") + 1  # after "#ROSBAG V2.0\n"
+    (header_len,) = struct.unpack_from("<I", data, pos)
+    fields: dict[bytes, bytes] = {}
+    p = pos + 4
+    while p < pos + 4 + header_len:
+        (n,) = struct.unpack_from("<I", data, p)
+        name, _, value = data[p + 4 : p + 4 + n].partition(b"=")
+        fields[name] = value
+        p += 4 + n
+    return pos + 4, pos + 4 + header_len, fields
+
+
+def unindex_bag(path: Path) -> Path:
+    """Make ``path`` look like a recording that was cut off: no index, index_pos = 0.
+
+    rosbag writes the connection and chunk-info records at the end and then fills in
+    ``index_pos`` in the bag header; a killed recorder leaves ``index_pos`` 0 and no index.
+    """
+    data = bytearray(path.read_bytes())
+    start, end, fields = bag_header_fields(path)
+    (index_pos,) = struct.unpack("<Q", fields[b"index_pos"])
+    at = data.index(b"index_pos=", start, end) + len(b"index_pos=")
+    data[at : at + 8] = struct.pack("<Q", 0)
+    path.write_bytes(bytes(data[:index_pos]))
+    return path
 
 
 def write_empty_bag(path: Path) -> Path:

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from gaitnet.errors import SessionError
+from gaitnet.errors import InputError
 from gaitnet.io.labelme_io import labelme_document, labels_txt, read_labelme, read_labels_txt
 
 
@@ -50,7 +50,7 @@ def test_image_path_may_not_escape(tmp_path: Path) -> None:
     labels, instances = synthetic_masks()
     doc = labelme_document(labels, instances, "../../etc/passwd")
     (tmp_path / "x.json").write_text(json.dumps(doc))
-    with pytest.raises(SessionError, match="escapes the annotation folder"):
+    with pytest.raises(InputError, match="escapes the annotation folder"):
         read_labelme(tmp_path / "x.json")
 
 
@@ -59,11 +59,11 @@ def test_unknown_label_and_missing_key(tmp_path: Path) -> None:
     doc = labelme_document(labels, instances, "f.png")
     doc["shapes"][0]["label"] = "hand"
     (tmp_path / "a.json").write_text(json.dumps(doc))
-    with pytest.raises(SessionError, match="a.json: unknown label 'hand'"):
+    with pytest.raises(InputError, match=r"a.json: shapes\[0\]: unknown label 'hand'"):
         read_labelme(tmp_path / "a.json")
     del doc["imageHeight"]
     (tmp_path / "b.json").write_text(json.dumps(doc))
-    with pytest.raises(SessionError, match="b.json: missing key 'imageHeight'"):
+    with pytest.raises(InputError, match="b.json: missing key 'imageHeight'"):
         read_labelme(tmp_path / "b.json")
 
 
@@ -76,5 +76,5 @@ def test_labels_txt(tmp_path: Path) -> None:
         "leg": 2,
     }
     (tmp_path / "bad.txt").write_text("foot\nleg\n")
-    with pytest.raises(SessionError, match="must start with"):
+    with pytest.raises(InputError, match="must start with"):
         read_labels_txt(tmp_path / "bad.txt")
