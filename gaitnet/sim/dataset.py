@@ -82,11 +82,13 @@ class DatasetResult:
 
 @dataclass(frozen=True, eq=False)
 class DatasetFrame:
-    """One simulated frame: its world, time, camera pose, the noise-free render (labels,
-    true depth) and what the camera delivers (8-bit RGB, depth in metres, 0 = invalid)."""
+    """One simulated frame: its world, time, camera matrix and pose, the noise-free render
+    (labels, true depth) and what the camera delivers (8-bit RGB, depth in metres, 0 =
+    invalid)."""
 
     scene: SimScene
     t_s: float
+    K: np.ndarray
     T_WfromC: np.ndarray
     render: RenderResult
     rgb: NDArray[np.uint8]
@@ -160,7 +162,7 @@ def simulate_frame(
     exposure = auto_exposure(result.rgb_linear) * scene.exposure_gain
     K = cfg.camera.intrinsics().K
     rgb, depth = apply_sensor(result, K, rngs["sensor"], cfg.sensor, exposure)
-    return DatasetFrame(scene, t, T_WfromC, result, rgb, depth)
+    return DatasetFrame(scene, t, K, T_WfromC, result, rgb, depth)
 
 
 def _check_arguments(
