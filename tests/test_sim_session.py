@@ -3,18 +3,21 @@
 from __future__ import annotations
 
 import hashlib
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from gaitnet.config import load_config
+from gaitnet.errors import GaitnetError, InputError
 from gaitnet.io import SessionFolder
 from gaitnet.io.trajectory import read_tum
 from gaitnet.sim.config import SimConfig
 from gaitnet.sim.gait import generate_walk
 from gaitnet.sim.imu import ImuConfig, simulate_imu
-from gaitnet.sim.scene_setup import rng_streams
+from gaitnet.sim.scene_setup import build_scene, rng_streams
 from gaitnet.sim.session import simulate_session
 from gaitnet.sim.strapdown import integrate_imu
 from gaitnet.sim.subject import sample_subject
@@ -158,3 +161,76 @@ def test_unknown_config_key_is_named(tmp_path: Path) -> None:
 
     with pytest.raises(ConfigError, match=r"bad.yaml: unknown key 'gait.sped_mps'"):
         load_config(SimConfig, bad)
+
+
+def test_pitch_range_draws_one_pitch_per_session_and_records_it(tmp_path: Path) -> None:
+    cfg = load_config(SimConfig, CONFIG, [*FAST, "mount.pitch_deg=[40, 60]", "camera.fps=2"])
+    pitches = []
+    for seed in (1, 2):
+        out = simulate_session(cfg, seed, tmp_path / f"s{seed}").path
+        pitch = SessionFolder(out).calibration.extra["mount_pitch_deg"]
+        assert 40.0 <= pitch <= 60.0
+        # Standing upright at the first frame: gravity in the camera is (0, cos p, sin p).
+        _, T_WC = read_tum(out / "groundtruth" / "camera_frames.tum")
+        g_C = T_WC[0, :3, :3].T @ np.array([0.0, 0.0, -1.0])
+        p = np.radians(pitch)
+        np.testing.assert_allclose(g_C, [0.0, np.cos(p), np.sin(p)], atol=0.02)
+        pitches.append(pitch)
+    assert pitches[0] != pitches[1]
+    # The pitch has its own random stream: the rest of the world does not depend on it.
+    fixed = load_config(SimConfig, CONFIG, [*FAST, "camera.fps=2"])
+    drawn, level = build_scene(cfg, rng_streams(1)), build_scene(fixed, rng_streams(1))
+    assert drawn.pitch_deg == pytest.approx(pitches[0], abs=1e-6) and level.pitch_deg == 70.0
+    assert drawn.subject == level.subject and drawn.light == level.light
+    assert drawn.floor_family == level.floor_family
+    assert drawn.exposure_gain == level.exposure_gain
+    np.testing.assert_array_equal(drawn.floor.levels[0], level.floor.levels[0])
+
+
+@pytest.mark.parametrize("seed", [-1, 2**32, True, 1.5])
+def test_bad_seed_is_an_input_error_before_anything_is_written(tmp_path: Path, seed) -> None:
+    with pytest.raises(InputError, match="seed"):
+        simulate_session(load_config(SimConfig, CONFIG, FAST), seed, tmp_path / "out")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_output_that_is_a_file_is_refused_before_any_work(tmp_path: Path, monkeypatch) -> None:
+    import gaitnet.sim.session as session_module
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("the scene was built before the output path was checked")
+
+    monkeypatch.setattr(session_module, "build_scene", no_work)
+    target = tmp_path / "file"
+    target.write_text("keep")
+    with pytest.raises(GaitnetError, match="not a folder"):
+        simulate_session(load_config(SimConfig, CONFIG, FAST), 0, target)
+    assert target.read_text() == "keep" and [p.name for p in tmp_path.iterdir()] == ["file"]
+
+
+def test_exception_mid_run_leaves_nothing_and_leftovers_of_killed_runs_go(
+    tmp_path: Path, monkeypatch
+) -> None:
+    import gaitnet.sim.session as session_module
+
+    cfg = load_config(SimConfig, CONFIG, [*FAST, "camera.fps=2"])
+    real, calls = session_module.apply_sensor, []
+
+    def failing(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 3:
+            raise RuntimeError("boom")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(session_module, "apply_sensor", failing)
+    with pytest.raises(RuntimeError, match="boom"):
+        simulate_session(cfg, 0, tmp_path / "out")
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.setattr(session_module, "apply_sensor", real)
+    # A staging folder of a killed run (a process id that no longer runs) is removed.
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True).stdout.strip()  # fmt: skip
+    leftover = tmp_path / f".out.partial-{dead}"
+    (leftover / "color").mkdir(parents=True)
+    simulate_session(cfg, 0, tmp_path / "out")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
