@@ -309,14 +309,16 @@ class SessionWriter:
 def copy_session(source, out_dir: str | Path, overwrite: bool = False, progress=None) -> Path:
     """Write any :class:`~gaitnet.io.types.SessionSource` as a session folder.
 
-    ``progress`` optionally wraps the frame iterator (e.g. ``tqdm``) for the CLI.
+    The IMU stream is read (and validated) before anything is written, so a broken stream
+    fails fast. ``progress`` optionally wraps the frame iterator (e.g. ``tqdm``) for the CLI.
     """
+    imu = source.imu
     writer = SessionWriter(out_dir, source.calibration, overwrite=overwrite)
-    frames = source.frames()
-    if progress is not None:
-        frames = progress(frames, total=len(source))
     with writer:
+        writer.set_imu(imu)
+        frames = source.frames()
+        if progress is not None:
+            frames = progress(frames, total=len(source))
         for frame in frames:
             writer.add_frame(frame.t_ns, frame.rgb, frame.depth_m)
-        writer.set_imu(source.imu)
     return Path(out_dir)

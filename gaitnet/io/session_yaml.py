@@ -17,37 +17,24 @@ from typing import Any
 
 import yaml
 
-from gaitnet.config import config_to_dict, parse_config
+from gaitnet.config import config_to_dict, parse_config, read_yaml
 from gaitnet.errors import ConfigError, SessionError
 from gaitnet.io.types import SESSION_FORMAT_VERSION, SessionCalibration
 
 HEADER = "# gaitnet recorded session, folder format v1 (see docs/session-format.md)\n"
-MAX_BYTES = 1 << 20
-"""A session.yaml larger than this (1 MiB) is refused: calibration is a few kilobytes."""
 
 
 def _load_mapping(path: Path) -> dict[str, Any]:
+    """The file's mapping, read by the project's one YAML reader (:func:`read_yaml`: size,
+    UTF-8, nesting and alias limits, duplicate keys), with errors as SessionError."""
     source = str(path)
     if not path.is_file():
         what = "is not a file" if path.exists() else "missing"
         raise SessionError(f"{source}: {what} (every session folder needs session.yaml)")
     try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise SessionError(f"{source}: cannot read ({exc.strerror})") from None
-    if len(raw) > MAX_BYTES:
-        raise SessionError(f"{source}: {len(raw)} bytes, too large for a session.yaml")
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise SessionError(f"{source}: not UTF-8 text (bad byte at offset {exc.start})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        why = " ".join(str(exc).split())
-        raise SessionError(f"{source}: not valid YAML ({why})") from None
-    except RecursionError:
-        raise SessionError(f"{source}: not valid YAML (nested too deeply)") from None
+        data = read_yaml(path)
+    except ConfigError as exc:
+        raise SessionError(str(exc)) from None
     if data is None:
         raise SessionError(f"{source}: empty file")
     if not isinstance(data, dict):
@@ -74,8 +61,6 @@ def read_session_yaml(path: Path) -> SessionCalibration:
         return parse_config(SessionCalibration, data, source)
     except ConfigError as exc:
         raise SessionError(str(exc)) from None
-    except RecursionError:
-        raise SessionError(f"{source}: key 'extra' is nested too deeply") from None
 
 
 def session_yaml_text(calib: SessionCalibration) -> str:
