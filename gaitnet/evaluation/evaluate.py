@@ -33,7 +33,7 @@ from gaitnet.errors import GaitnetError, InputError, SessionError
 from gaitnet.evaluation.metrics import ate_yaw_aligned, match_times, mpjpe
 from gaitnet.io.atomic import atomic_write_text
 from gaitnet.io.trajectory import read_tum
-from gaitnet.motion.amass import NPZ_READ_ERRORS
+from gaitnet.motion.amass import npz_array, open_npz
 
 __all__ = ["JOINTS_FILE", "TRAJECTORY_FILE", "ResultEvaluation", "evaluate_result", "write_report"]
 
@@ -58,22 +58,12 @@ class ResultEvaluation:
 
 def _load_joints(path: Path, error: type[GaitnetError]) -> tuple[np.ndarray, np.ndarray]:
     """``t_ns`` (n,) int64 and ``positions`` (n, 9, 3) float64 of a joints file, checked."""
-    if not path.is_file():
-        raise error(f"{path}: joints file not found")
-    try:
-        data = np.load(path, allow_pickle=False)
-    except NPZ_READ_ERRORS as exc:
-        raise error(f"{path}: not a readable joints .npz ({exc})") from exc
-    if not isinstance(data, np.lib.npyio.NpzFile):
-        raise error(f"{path}: expected an .npz archive with 't_ns' and 'positions'")
-    with data:
+    with open_npz(path, "a joints file (t_ns, positions)", error) as data:
         missing = [k for k in ("t_ns", "positions") if k not in data.files]
         if missing:
             raise error(f"{path}: missing key(s) {missing}")
-        try:
-            t_ns, positions = data["t_ns"], data["positions"]
-        except NPZ_READ_ERRORS as exc:
-            raise error(f"{path}: keys 't_ns'/'positions' are not readable arrays ({exc})") from exc
+        t_ns = npz_array(data, path, "t_ns", error)
+        positions = npz_array(data, path, "positions", error)
     if t_ns.dtype.kind not in "iu" or t_ns.ndim != 1:
         raise error(f"{path}: 't_ns' must be a 1-D integer array, got {t_ns.dtype} {t_ns.shape}")
     if t_ns.dtype.kind == "u" and t_ns.size and int(t_ns.max()) > np.iinfo(np.int64).max:

@@ -43,13 +43,14 @@ from typing import Literal
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from gaitnet.errors import InputError
+from gaitnet.errors import GaitnetError, InputError
 from gaitnet.motion.skeleton import ROTATED_SMPL_INDICES
 
 __all__ = [
     "DEFAULT_EXCLUDE",
     "DEFAULT_INCLUDE",
     "NPZ_READ_ERRORS",
+    "npz_array",
     "TARGET_FPS",
     "AmassError",
     "DatasetSplit",
@@ -58,6 +59,7 @@ __all__ = [
     "find_amass_files",
     "is_walking_clip",
     "load_amass_clip",
+    "open_npz",
     "read_amass_npz",
     "read_clip_list",
     "resample_clip",
@@ -85,6 +87,51 @@ NPZ_READ_ERRORS: tuple[type[BaseException], ...] = (
 
 class AmassError(InputError):
     """An AMASS file, clip list or prepared file is unusable; the message names file and key."""
+
+
+def _npz_reason(exc: BaseException) -> str:
+    """One line saying why numpy could not read an archive (never advice to unpickle)."""
+    text = " ".join(str(exc).split())
+    if "allow_pickle" in text:
+        if "pickled" in text:  # numpy took a non-zip file for a pickle
+            return "not an .npz archive"
+        return "an object array, which would need unpickling; gaitnet never unpickles data"
+    if isinstance(exc, EOFError) or not text:
+        return "the file is empty or truncated"
+    return text[:200]
+
+
+def open_npz(
+    path: str | Path, what: str, error: type[GaitnetError] = InputError
+) -> np.lib.npyio.NpzFile:
+    """``np.load(path, allow_pickle=False)`` of an ``.npz`` archive of named arrays.
+
+    A folder, a missing file, a file numpy cannot read and a plain ``.npy`` array are each an
+    ``error`` (a :class:`~gaitnet.errors.GaitnetError` class) naming the file and ``what`` it
+    should be; use the result as a context manager.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise error(f"{path}: is a folder, expected {what}")
+    if not path.is_file():
+        raise error(f"{path}: {what} not found")
+    try:
+        data = np.load(path, allow_pickle=False)
+    except NPZ_READ_ERRORS as exc:
+        raise error(f"{path}: not a readable {what} ({_npz_reason(exc)})") from exc
+    if not isinstance(data, np.lib.npyio.NpzFile):
+        raise error(f"{path}: expected {what}, an .npz archive of named arrays, found one array")
+    return data
+
+
+def npz_array(
+    data: np.lib.npyio.NpzFile, path: str | Path, key: str, error: type[GaitnetError] = InputError
+) -> np.ndarray:
+    """``data[key]``; a corrupt member or an object array is an ``error`` naming file and key."""
+    try:
+        return data[key]
+    except NPZ_READ_ERRORS as exc:
+        raise error(f"{path}: key {key!r} is not a readable array ({_npz_reason(exc)})") from exc
 
 
 # --------------------------------------------------------------------------- clips
@@ -124,10 +171,7 @@ def _get(data: np.lib.npyio.NpzFile, path: Path, key: str, flavour: str) -> np.n
             f"{path}: missing key {key!r} (an AMASS {flavour} file needs "
             f"{', '.join(_SMPLH_KEYS if flavour.startswith('SMPL+H') else _SMPLX_KEYS)})"
         )
-    try:
-        return data[key]
-    except NPZ_READ_ERRORS as exc:  # object arrays need pickles, which we never load
-        raise AmassError(f"{path}: key {key!r} is not a readable plain array ({exc})") from exc
+    return npz_array(data, path, key, AmassError)
 
 
 def _finite(path: Path, key: str, a: np.ndarray) -> np.ndarray:
@@ -188,13 +232,7 @@ def read_amass_npz(path: str | Path, *, amass_root: str | Path | None = None) ->
     path relative to the root and its sub-dataset is the first folder of that path.
     """
     path = Path(path)
-    try:
-        data = np.load(path, allow_pickle=False)
-    except NPZ_READ_ERRORS as exc:
-        raise AmassError(f"{path}: not a readable .npz file ({exc})") from exc
-    if not isinstance(data, np.lib.npyio.NpzFile):
-        raise AmassError(f"{path}: expected an .npz archive of named arrays, found one array")
-    with data:
+    with open_npz(path, "an AMASS .npz file", AmassError) as data:
         if "root_orient" in data.files or "pose_body" in data.files:
             flavour = "SMPL-X stageii"
             root = _finite(path, "root_orient", _get(data, path, "root_orient", flavour))

@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gaitnet.errors import InputError
-from gaitnet.motion.amass import NPZ_READ_ERRORS
+from gaitnet.motion.amass import NPZ_READ_ERRORS, open_npz
 from gaitnet.motion.skeleton import (
     PARENTS,
     SMPL_JOINT_INDICES,
@@ -115,13 +115,7 @@ def _dense(path: Path, key: str, value: Any) -> np.ndarray:
 
 def _read_arrays(path: Path) -> dict[str, Any]:
     if path.suffix == ".npz":
-        try:
-            data = np.load(path, allow_pickle=False)
-        except NPZ_READ_ERRORS as exc:
-            raise BodyModelError(f"{path}: not a readable .npz body model ({exc})") from exc
-        if not isinstance(data, np.lib.npyio.NpzFile):
-            raise BodyModelError(f"{path}: expected an .npz archive of named arrays")
-        with data:
+        with open_npz(path, "an .npz body model", BodyModelError) as data:
             missing = [k for k in REQUIRED_KEYS if k not in data.files]
             if missing:
                 raise BodyModelError(

@@ -23,7 +23,6 @@ from gaitnet.io.atomic import atomic_open
 from gaitnet.motion.amass import (
     DEFAULT_EXCLUDE,
     DEFAULT_INCLUDE,
-    NPZ_READ_ERRORS,
     TARGET_FPS,
     AmassError,
     DatasetSplit,
@@ -31,6 +30,8 @@ from gaitnet.motion.amass import (
     find_amass_files,
     is_walking_clip,
     load_amass_clip,
+    npz_array,
+    open_npz,
     read_clip_list,
 )
 from gaitnet.motion.skeleton import N_ROTATED
@@ -224,26 +225,12 @@ def load_prepared(path: str | Path) -> PreparedWalking:
     every number finite; anything else raises :class:`AmassError` naming the file and key.
     """
     path = Path(path)
-    if path.is_dir():
-        raise AmassError(f"{path}: is a folder, expected a prepared .npz file")
-    try:
-        data = np.load(path, allow_pickle=False)
-    except FileNotFoundError as exc:
-        raise AmassError(f"{path}: prepared file not found (run data/prepare_amass.py)") from exc
-    except NPZ_READ_ERRORS as exc:
-        raise AmassError(f"{path}: not a readable prepared .npz ({exc})") from exc
-    if not isinstance(data, np.lib.npyio.NpzFile):
-        raise AmassError(f"{path}: expected an .npz archive of named arrays, found one array")
-    with data:
+    what = "a prepared walking file (data/prepare_amass.py writes one)"
+    with open_npz(path, what, AmassError) as data:
         missing = [k for k in PREPARED_KEYS if k not in data.files]
         if missing:
             raise AmassError(f"{path}: missing key(s) {missing}; re-run the AMASS preparation")
-        arrays: dict[str, np.ndarray] = {}
-        for key in PREPARED_KEYS:
-            try:
-                arrays[key] = data[key]
-            except NPZ_READ_ERRORS as exc:
-                raise AmassError(f"{path}: key {key!r} is not a readable array ({exc})") from exc
+        arrays = {key: npz_array(data, path, key, AmassError) for key in PREPARED_KEYS}
     version = _scalar(path, "format_version", arrays.pop("format_version"), "iu")
     if version != PREPARED_FORMAT_VERSION:
         raise AmassError(

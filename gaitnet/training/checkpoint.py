@@ -25,6 +25,7 @@ import math
 import pickle
 import re
 import subprocess
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Protocol
@@ -133,7 +134,9 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
     if not path.is_file():
         raise CheckpointError(f"checkpoint {path} does not exist")
     try:
-        state = torch.load(path, map_location=map_location, weights_only=True)
+        with warnings.catch_warnings():  # a foreign pickle's protocol: the error below says it
+            warnings.filterwarnings("ignore", message="Detected pickle protocol")
+            state = torch.load(path, map_location=map_location, weights_only=True)
     except pickle.UnpicklingError as exc:
         # torch's message is several lines and suggests weights_only=False: never do that.
         found = re.search(r"(?:GLOBAL|global:?)\s+([\w.]+)", str(exc))
@@ -143,11 +146,12 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
             "tensors and plain data; gaitnet loads checkpoints with weights_only=True and "
             "never runs code from a file"
         ) from exc
-    except OSError:
-        raise
-    except Exception as exc:  # truncated or foreign files raise many kinds
-        reason = _one_line(str(exc).split(". ")[0]) or type(exc).__name__
-        raise CheckpointError(f"checkpoint {path} cannot be read ({reason})") from exc
+    except Exception as exc:  # truncated or foreign files raise many kinds (OSError too)
+        text = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        reason = _one_line(text.split(". ")[0]) or type(exc).__name__
+        raise CheckpointError(
+            f"checkpoint {path} cannot be read: empty, truncated or not a checkpoint ({reason})"
+        ) from exc
     if not isinstance(state, dict):
         raise CheckpointError(f"checkpoint {path} holds a {type(state).__name__}, not a dict")
     missing = [k for k in CHECKPOINT_KEYS if k not in state]
