@@ -188,6 +188,7 @@ def write_sdk_bag(
     chunk_threshold: int | None = None,
     no_data_pixels: bool = False,
     timestamp_domains: dict[str, str] | None = None,
+    out_of_order: bool = False,
     fault: str | None = None,
 ) -> BagSpec:
     """Write an SDK-style bag; see :class:`BagSpec` for what ends up in it.
@@ -199,7 +200,8 @@ def write_sdk_bag(
     65535 (the SDK's "no data"). ``timestamp_domains``: write per-frame metadata topics with
     these ``timestamp_domain`` values (keys ``Color``, ``Depth``, ``Accel``, ``Gyro``; a value
     ``"A->B"`` switches from A to B halfway). ``fault``: one of :data:`FAULTS`, a damage that
-    the reader must refuse.
+    the reader must refuse. ``out_of_order``: colour frames 1 and 2 are recorded in swapped
+    order (each keeps its stamp and pixels), as a host can deliver them.
     """
     if fault is not None and fault not in FAULTS:
         raise ValueError(f"unknown fault {fault!r}")
@@ -388,7 +390,10 @@ def write_sdk_bag(
                     msg = replace(msg, step=msg.step - 3)
                 if fault == "color_encoding_change" and i == 3:
                     msg = replace(msg, encoding="bgr8")
-                events.append((rec_time(t) + 2_000_000, 0, f"{color_s}/Color_0/image/data", msg))
+                t_rec = rec_time(t) + 2_000_000
+                if out_of_order and i in (1, 2):
+                    t_rec += COLOR_PERIOD_NS * (1 if i == 1 else -1)
+                events.append((t_rec, 0, f"{color_s}/Color_0/image/data", msg))
         if include_depth:
             for i, t in enumerate(spec.depth_t_ns):
                 msg = _image(store, i, t, spec.depth_raw[i], "mono16")

@@ -458,3 +458,69 @@ def test_misaligned_bag_depth_is_aligned_to_colour(tmp_path):
         valid = frame.depth_m > 0
         assert valid.mean() > 0.8
         assert (np.abs(frame.depth_m[valid] - truth[valid]) / truth[valid]).max() < 0.01
+
+
+# -- hardening --------------------------------------------------------------------------------
+
+
+def test_depth_65535_is_no_data_not_65_metres(tmp_path):
+    spec = write_sdk_bag(tmp_path / "nodata.bag", n_frames=2, no_data_pixels=True)
+    depth = RealSenseBag(spec.path).frame(1).depth_m
+    raw = spec.depth_raw[1]
+    assert (raw == 65535).sum() == 15
+    assert (depth[raw == 65535] == 0).all()
+    ok = (raw != 65535) & (raw != 0)
+    np.testing.assert_array_equal(depth[ok], expected_depth_m(raw, 0.001)[ok])
+
+
+def test_one_timestamp_domain_is_recorded(tmp_path):
+    domains = {k: "Hardware Clock" for k in ("Color", "Depth", "Accel", "Gyro")}
+    spec = write_sdk_bag(tmp_path / "hw.bag", n_frames=3, timestamp_domains=domains)
+    assert RealSenseBag(spec.path).calibration.extra["timestamp_domain"] == "Hardware Clock"
+    plain = write_sdk_bag(tmp_path / "plain.bag", n_frames=2)
+    assert "timestamp_domain" not in RealSenseBag(plain.path).calibration.extra
+
+
+def test_mixed_timestamp_domains_are_refused(tmp_path):
+    domains = {"Color": "Global Time", "Depth": "Global Time", "Gyro": "System Time"}
+    spec = write_sdk_bag(tmp_path / "mixed.bag", n_frames=3, timestamp_domains=domains)
+    with pytest.raises(SessionError) as excinfo:
+        RealSenseBag(spec.path)
+    assert_one_line_error(
+        excinfo, spec.path, "colour image 'Global Time'", "gyroscope 'System Time'"
+    )
+
+
+def test_a_missing_domain_is_assumed_with_a_warning(tmp_path, caplog):
+    domains = {"Color": "Global Time", "Depth": "Global Time"}
+    spec = write_sdk_bag(tmp_path / "partial.bag", n_frames=3, timestamp_domains=domains)
+    with caplog.at_level(logging.WARNING, logger="gaitnet.io.realsense_bag"):
+        bag = RealSenseBag(spec.path)
+    assert bag.calibration.extra["timestamp_domain"] == "Global Time"
+    assert "no timestamp domain for the accelerometer, gyroscope stream(s)" in caplog.text
+
+
+def test_unindexed_bag_says_how_to_fix_it(tmp_path):
+    from bagfactory import unindex_bag
+
+    spec = write_sdk_bag(tmp_path / "cut.bag", n_frames=3)
+    unindex_bag(spec.path)
+    with pytest.raises(SessionError) as excinfo:
+        RealSenseBag(spec.path)
+    assert_one_line_error(excinfo, spec.path, "no index", "rosbag reindex cut.bag")
+
+
+def test_frames_out_of_order_are_sorted_with_a_warning(tmp_path, caplog):
+    """Stamps a little out of record order (within a frame) are sorted, never silently."""
+    spec = write_sdk_bag(tmp_path / "order.bag", n_frames=4, out_of_order=True)
+    with caplog.at_level(logging.WARNING, logger="gaitnet.io.realsense_bag"):
+        bag = RealSenseBag(spec.path)
+    assert "1 colour image frame(s) out of order by up to 33.3 ms" in caplog.text
+    np.testing.assert_array_equal(bag.frame_times_ns, spec.color_t_ns)
+    for i in range(4):
+        np.testing.assert_array_equal(bag.frame(i).rgb, spec.rgb[i])
+
+
+def test_explicit_T_CfromI_must_be_rigid(sdk_bag):
+    with pytest.raises(ValueError, match="T_CfromI is not a rigid transform"):
+        RealSenseBag(sdk_bag.path, T_CfromI=np.diag([1.0, 1.0, 2.0, 1.0]))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -189,3 +190,103 @@ def test_open_session_rejects_unknown_path(tmp_path: Path) -> None:
     (tmp_path / "x.txt").write_text("hi")
     with pytest.raises(SessionError, match="not a session folder or a .bag"):
         open_session(tmp_path / "x.txt")
+
+
+def test_writer_refuses_wrong_data_with_session_errors(tmp_path: Path) -> None:
+    t_ns, rgb, depth = tiny_frames(1)[0]
+    root = tmp_path / "out"
+    bad_calls = [
+        (lambda w: w.add_frame(t_ns, rgb[:, :-1], depth), "colour must be uint8 (24, 32, 3)"),
+        (lambda w: w.add_frame(t_ns, rgb.astype(np.float32), depth), "colour must be uint8"),
+        (lambda w: w.add_frame(t_ns, rgb, depth[:-1]), "depth must be float metres (24, 32)"),
+        (lambda w: w.add_frame(t_ns, rgb, (depth * 1000).astype(np.uint16)), "float metres"),
+        (lambda w: w.add_frame(2**63, rgb, depth), "outside [0, 2**63)"),
+        (lambda w: w.add_frame(1.5, rgb, depth), "must be integer ns"),
+        (lambda w: (w.add_frame(t_ns, rgb, depth), w.add_frame(t_ns, rgb, depth)), "increase"),
+    ]
+    for call, fragment in bad_calls:
+        with pytest.raises(SessionError) as excinfo, SessionWriter(root, tiny_calibration()) as w:
+            call(w)
+        assert fragment in str(excinfo.value) and str(root) in str(excinfo.value)
+        assert list(tmp_path.iterdir()) == []  # staging removed, nothing published
+    imu = tiny_imu()
+    imu.accel[3, 0] = np.nan
+    calib = tiny_calibration()
+    with pytest.raises(SessionError, match="non-finite IMU value at sample 3"):
+        SessionWriter(root, calib).set_imu(imu)
+    for path in tmp_path.iterdir():  # the writer above was never closed: drop its staging
+        shutil.rmtree(path)
+    writer = SessionWriter(root, calib)
+    writer.add_frame(t_ns, rgb, depth)
+    with pytest.raises(SessionError, match="no IMU stream was set"):
+        writer.close()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_overwrite_replaces_the_session_in_one_swap(tmp_path: Path) -> None:
+    root = make_tiny_session(tmp_path / "s", n_frames=4)
+    with SessionWriter(root, tiny_calibration(), overwrite=True) as writer:
+        for t_ns, rgb, depth in tiny_frames(2):
+            writer.add_frame(t_ns, rgb, depth)
+        writer.set_imu(tiny_imu())
+    assert len(SessionFolder(root)) == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s"]
+
+
+def test_calibration_types_validate_and_round_trip(tmp_path: Path) -> None:
+    from gaitnet.io.session_yaml import read_session_yaml, session_yaml_text
+    from gaitnet.io.types import AprilTagBoard, CameraIntrinsics, ImuNoise, SessionCalibration
+
+    calib = tiny_calibration()
+    (tmp_path / "session.yaml").write_text(session_yaml_text(calib))
+    back = read_session_yaml(tmp_path / "session.yaml")
+    assert session_yaml_text(back) == session_yaml_text(calib)
+    assert back.color == calib.color and back.imu_noise == calib.imu_noise
+    np.testing.assert_array_equal(back.apriltag_boards[0].T_WfromBoard, np.eye(4))
+    # numpy scalars are normalised, so they serialise like literals
+    cam = CameraIntrinsics(np.int64(32), 24, np.float64(30.0), 30.0, np.float32(15.5), 11.5)
+    assert cam == calib.color and type(cam.width) is int and type(cam.fx) is float
+    for kwargs, fragment in [
+        (dict(fx=float("nan")), "fx must be finite"),
+        (dict(width=0), "width must be at least 1"),
+        (dict(width=32.0), "width must be an integer"),
+        (dict(cy=float("inf")), "cy must be finite"),
+        (dict(distortion=(0.0, float("nan"))), "distortion[1] must be finite"),
+    ]:
+        args = dict(width=32, height=24, fx=30.0, fy=30.0, cx=15.5, cy=11.5) | kwargs
+        with pytest.raises(ValueError) as excinfo:
+            CameraIntrinsics(**args)
+        assert fragment in str(excinfo.value)
+    with pytest.raises(ValueError, match="gyro_noise_density must not be negative"):
+        ImuNoise(-1.0, 0.0, 0.0, 0.0)
+    with pytest.raises(ValueError, match="accel_bias_random_walk must be finite"):
+        ImuNoise(0.0, 0.0, 0.0, float("nan"))
+    reflection = np.diag([1.0, 1.0, -1.0, 1.0])
+    with pytest.raises(ValueError, match="T_WfromBoard is not a rigid transform"):
+        AprilTagBoard("b", "tag36h11", 2, 2, 0.04, 0.01, 0, reflection)
+    board = calib.apriltag_boards[0]
+    for kwargs, fragment in [
+        (dict(depth_scale_m=float("nan")), "depth_scale_m must be finite"),
+        (dict(depth_scale_m=-0.001), "depth_scale_m must be positive"),
+        (dict(T_CfromI=np.full((4, 4), np.nan)), "T_CfromI must be finite"),
+        (dict(apriltag_boards=(board, board)), "two AprilTag boards are named 'start'"),
+        (dict(extra={"x": float("inf")}), "extra.x must be finite"),
+        (dict(extra={"x": object()}), "extra.x must be plain data"),
+    ]:
+        with pytest.raises(ValueError) as excinfo:
+            SessionCalibration(**(vars(calib) | kwargs))
+        assert fragment in str(excinfo.value)
+
+
+def test_tag_corners_follow_the_aruco_order() -> None:
+    from gaitnet.io.types import tag_corners_in_board
+
+    board = tiny_calibration().apriltag_boards[0]  # 5 columns, 40 mm tags, 12 mm gaps
+    corners = tag_corners_in_board(board, 6)  # row 1, column 1: centre (0.072, 0.072)
+    np.testing.assert_allclose(
+        corners,
+        [[0.052, 0.092, 0], [0.092, 0.092, 0], [0.092, 0.052, 0], [0.052, 0.052, 0]],
+        atol=1e-12,
+    )
+    with pytest.raises(KeyError):
+        tag_corners_in_board(board, 35)
