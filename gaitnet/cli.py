@@ -319,7 +319,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "evaluate",
         help="compare a result folder with a simulated session's ground truth (JSON metrics)",
-        description="Reports the DESIGN.md metric keys the inputs allow: mpjpe_m from "
+        description="Reports the evaluation-contract metric keys the inputs allow: mpjpe_m from "
         "RESULT_DIR/joints.npz, body_ate_m from RESULT_DIR/camera_frames.tum.",
     )
     p.add_argument(
