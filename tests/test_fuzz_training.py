@@ -24,6 +24,11 @@ from gaitnet.motion.amass import DatasetSplit
 from gaitnet.motion.prepared import prepare_walking_subset
 
 ROOT = Path(__file__).parents[1]
+# A warning would be a second line on a user's stderr: every one fails these tests.
+pytestmark = [
+    pytest.mark.filterwarnings("error::RuntimeWarning"),
+    pytest.mark.filterwarnings("error::UserWarning"),
+]
 
 
 def _load_script():

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -87,7 +88,9 @@ def _load_trajectory(path: Path, error: type[GaitnetError]) -> tuple[np.ndarray,
     if not path.is_file():
         raise error(f"{path}: trajectory file not found")
     try:
-        t, T = read_tum(path)
+        with warnings.catch_warnings():  # numpy warns about an empty file: the error says it
+            warnings.simplefilter("ignore", UserWarning)
+            t, T = read_tum(path)
     except SessionError as exc:  # read_tum names the file; say which side it is on
         raise error(str(exc)) from exc
     if len(t) == 0:
@@ -127,7 +130,8 @@ def evaluate_result(result_dir: str | Path, session_dir: str | Path) -> ResultEv
         i, j = match_times(t_est, t_ref)
         if len(i) == 0:
             raise InputError(f"{joints}: no frame matches the ground truth's times")
-        value = mpjpe(p_est[i, LOWER_BODY], p_ref[j, LOWER_BODY])
+        with np.errstate(over="ignore", invalid="ignore"):  # reported below, not warned
+            value = mpjpe(p_est[i, LOWER_BODY], p_ref[j, LOWER_BODY])
         metrics["mpjpe_m"] = _finite(joints, "MPJPE", value)
         counts["mpjpe_frames"] = int(len(i))
     trajectory = result_dir / TRAJECTORY_FILE
@@ -137,7 +141,8 @@ def evaluate_result(result_dir: str | Path, session_dir: str | Path) -> ResultEv
         i, j = match_times(np.round(t_est * 1e9), np.round(t_ref * 1e9))
         if len(i) < 2:
             raise InputError(f"{trajectory}: fewer than 2 poses match the ground truth's times")
-        value = ate_yaw_aligned(p_est[i], p_ref[j])
+        with np.errstate(over="ignore", invalid="ignore"):
+            value = ate_yaw_aligned(p_est[i], p_ref[j])
         metrics["body_ate_m"] = _finite(trajectory, "ATE", value)
         counts["ate_poses"] = int(len(i))
     if not metrics:

@@ -114,13 +114,13 @@ def open_npz(
     if path.is_dir():
         raise error(f"{path}: is a folder, expected {what}")
     if not path.is_file():
-        raise error(f"{path}: {what} not found")
+        raise error(f"{path}: not found (expected {what})")
     try:
         data = np.load(path, allow_pickle=False)
     except NPZ_READ_ERRORS as exc:
-        raise error(f"{path}: not a readable {what} ({_npz_reason(exc)})") from exc
+        raise error(f"{path}: cannot be read as {what} ({_npz_reason(exc)})") from exc
     if not isinstance(data, np.lib.npyio.NpzFile):
-        raise error(f"{path}: expected {what}, an .npz archive of named arrays, found one array")
+        raise error(f"{path}: holds one array, expected {what} (an .npz archive of named arrays)")
     return data
 
 
@@ -129,9 +129,12 @@ def npz_array(
 ) -> np.ndarray:
     """``data[key]``; a corrupt member or an object array is an ``error`` naming file and key."""
     try:
-        return data[key]
+        value = data[key]
     except NPZ_READ_ERRORS as exc:
         raise error(f"{path}: key {key!r} is not a readable array ({_npz_reason(exc)})") from exc
+    if not isinstance(value, np.ndarray):  # numpy hands back raw bytes of a non-.npy member
+        raise error(f"{path}: key {key!r} is not a readable array (not in .npy format)")
+    return value
 
 
 # --------------------------------------------------------------------------- clips
