@@ -6,7 +6,8 @@
 * ``OSError`` raised while reading or writing a path the user named (permission denied, disk
   full, a folder where a file was expected): the command line also prints one line and exits 1.
 * Anything else (``ValueError``, ``IndexError``, ...) escaping the library is a **bug** in
-  gaitnet: the command line prints the traceback and asks for a report. Library code therefore
+  gaitnet: the command line prints the traceback, asks for a report and exits with code 2
+  (docs/cli.md, *Exit status and errors*). Library code therefore
   validates every value where it enters (configs, session files, bags, result folders, model
   inputs) and raises one of the classes below; it never lets a user's mistake surface as a bare
   ``ValueError`` from deep inside numpy or torch.

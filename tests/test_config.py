@@ -109,3 +109,21 @@ def test_invalid_yaml_and_missing_file(tmp_path: Path) -> None:
         load_config(Example, write(tmp_path / "a.yaml", "name: [x\n"))
     with pytest.raises(ConfigError, match="config file not found"):
         load_config(Example, tmp_path / "none.yaml")
+
+
+def test_exponent_numbers_duplicate_keys_and_literal_types(tmp_path: Path) -> None:
+    """YAML 1.1 reads ``5e-4`` as a string: configs read it as a number (YAML 1.2); a key
+    given twice is an error (YAML would keep the last one silently); a literal matches by type."""
+    cfg = load_config(Example, write(tmp_path / "a.yaml", "name: x\noptim: {lr: 5e-4}\n"))
+    assert cfg.optim.lr == 5e-4
+    assert load_config(Example, None, ["name=x", "optim.gamma=1e-1"]).optim.gamma == 0.1
+    with pytest.raises(ConfigError, match="duplicate key 'epochs'"):
+        load_config(Example, write(tmp_path / "b.yaml", "name: x\nepochs: 3\nepochs: 4\n"))
+
+    @dataclass(frozen=True)
+    class Choice:
+        level: Literal[1, 2] = 1
+
+    with pytest.raises(ConfigError, match="'level' must be one of 1, 2, got True"):
+        load_config(Choice, None, ["level=true"])
+    assert load_config(Choice, None, ["level=2"]).level == 2
