@@ -234,3 +234,13 @@ def test_exception_mid_run_leaves_nothing_and_leftovers_of_killed_runs_go(
     (leftover / "color").mkdir(parents=True)
     simulate_session(cfg, 0, tmp_path / "out")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_camera_looking_away_from_the_feet_is_logged_not_hung(tmp_path: Path, caplog) -> None:
+    cfg = load_config(
+        SimConfig, CONFIG, [*FAST, "camera.fps=2", "mount.pitch_deg=10", "mount.yaw_deg=60"]
+    )
+    with caplog.at_level("WARNING", logger="gaitnet.sim.session"):
+        result = simulate_session(cfg, 0, tmp_path / "away")
+    assert result.marker_checks["visible_marker_fraction"] < 0.5
+    assert any("foot markers are in the image" in r.message for r in caplog.records)

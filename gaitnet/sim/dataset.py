@@ -34,6 +34,7 @@ by the next run.
 from __future__ import annotations
 
 import json
+import logging
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -45,7 +46,7 @@ from numpy.typing import NDArray
 
 from gaitnet.config import config_to_dict
 from gaitnet.errors import ConfigError, InputError
-from gaitnet.io.atomic import atomic_write_text, staged_folder
+from gaitnet.io.atomic import atomic_write_text, check_output_folder, staged_folder
 from gaitnet.io.contact_sheet import colourise_depth, colourise_labels, contact_sheet, write_png
 from gaitnet.io.images import depth_to_units, encode_png
 from gaitnet.io.labelme_io import labelme_document, labels_txt
@@ -54,6 +55,8 @@ from gaitnet.sim.render_types import F32, RenderResult
 from gaitnet.sim.rig import PITCH_RANGE_DEG
 from gaitnet.sim.scene_setup import SimScene, build_scene, check_seed, rng_streams
 from gaitnet.sim.sensor_model import apply_sensor, auto_exposure
+
+log = logging.getLogger(__name__)
 
 Progress = Callable[[Iterable, int], Iterable]
 
@@ -211,12 +214,13 @@ def simulate_dataset(
     counts = np.zeros(3)
     preview_rows: list[list[np.ndarray]] = []
     captions: list[str] = []
-    indices: Iterable[int] = range(n_frames)
-    if progress is not None:
-        indices = progress(indices, n_frames)
+    check_output_folder(out_dir, overwrite)
     with staged_folder(out_dir, overwrite) as staging:
         for sub in ("images", "depth", "labels", "instances"):
             (staging / sub).mkdir()
+        indices: Iterable[int] = range(n_frames)
+        if progress is not None:  # only now: a progress bar must not precede an early error
+            indices = progress(indices, n_frames)
         for i in indices:
             frame = simulate_frame(cfg, seed, i)
             label, instance = frame.render.label, frame.render.instance
@@ -266,6 +270,12 @@ def simulate_dataset(
         if preview_rows:
             write_png(staging / "preview.png", contact_sheet(preview_rows, captions))
     total = counts.sum()
+    if counts[1] + counts[2] == 0:
+        log.warning(
+            "%s: no foot or leg pixel in any frame; check mount.pitch_deg / yaw_deg / roll_deg "
+            "and the camera intrinsics",
+            out_dir,
+        )
     fractions = {
         name: float(c / total)
         for name, c in zip(("background", "foot", "leg"), counts, strict=True)

@@ -159,10 +159,10 @@ def simulate_session(
     preview_idx = preview_frames(times, cfg)
     preview_rows, captions, checks = [], [], []
     auto = None
-    indices: Iterable[int] = range(len(times))
-    if progress is not None:
-        indices = progress(indices, len(times))
     writer = SessionWriter(out_dir, calibration, overwrite=overwrite)
+    indices: Iterable[int] = range(len(times))
+    if progress is not None:  # only now: a progress bar must not precede an early error
+        indices = progress(indices, len(times))
     try:
         gt = GroundTruthWriter(writer.staging / "groundtruth", cfg.output.labels, writer.write_png)
         for k in indices:
@@ -203,6 +203,14 @@ def simulate_session(
     except BaseException:
         writer.abort()
         raise
+    feet_seen = sum(1 for c in checks if c[4]) / max(1, len(checks))
+    if feet_seen < 0.5:
+        log.warning(
+            "%s: the foot markers are in the image in only %.0f %% of frame-sides; check "
+            "mount.pitch_deg / yaw_deg / roll_deg and the camera intrinsics",
+            out_dir,
+            100 * feet_seen,
+        )
     visible = [c for c in checks if c[5]]
     marker_checks = {
         "visible_marker_fraction": len(visible) / max(1, len(checks)),
