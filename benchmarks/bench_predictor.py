@@ -16,11 +16,12 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import platform  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from gaitnet.motion.onnx_runtime import OnnxPredictor  # noqa: E402
+from gaitnet.motion.onnx_runtime import OnnxInputError, OnnxPredictor  # noqa: E402
 
 
 def time_calls(predictor: OnnxPredictor, x: np.ndarray, n: int, warmup: int) -> np.ndarray:
@@ -41,7 +42,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--n", type=int, default=2000, help="timed calls at batch 1")
     parser.add_argument("--warmup", type=int, default=100)
     args = parser.parse_args(argv)
-    predictor = OnnxPredictor(args.model, threads=1)
+    try:
+        predictor = OnnxPredictor(args.model, threads=1)
+    except OnnxInputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
     n_past = predictor.n_past or 10
     rng = np.random.default_rng(0)
     x1 = rng.normal(scale=0.3, size=(1, n_past, 21)).astype(np.float32)

@@ -12,18 +12,17 @@ file layout.
 
 from __future__ import annotations
 
-import argparse
 import sys
 
 from tqdm import tqdm
 
-from gaitnet.errors import GaitnetError
 from gaitnet.motion.amass import DEFAULT_EXCLUDE, DEFAULT_INCLUDE, TARGET_FPS, DatasetSplit
 from gaitnet.motion.prepared import prepare_walking_subset
+from gaitnet.training.scripts import USER_ERRORS, ScriptParser, error_line
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ScriptParser(prog="data/prepare_amass.py", description=__doc__.splitlines()[0])
     parser.add_argument("amass_root", help="folder with the AMASS sub-datasets")
     parser.add_argument("out_file", help="prepared .npz to write")
     parser.add_argument(
@@ -40,8 +39,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--skip-broken", action="store_true", help="skip unreadable clips instead of stopping"
     )
-    args = parser.parse_args(argv)
     try:
+        args = parser.parse_args(argv)
         report = prepare_walking_subset(
             args.amass_root,
             args.out_file,
@@ -54,8 +53,8 @@ def main(argv: list[str] | None = None) -> int:
             on_error="skip" if args.skip_broken else "raise",
             progress=lambda files, total: tqdm(files, total=total, desc="clips", unit="clip"),
         )
-    except GaitnetError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+    except USER_ERRORS as exc:
+        print(f"error: {error_line(exc)}", file=sys.stderr)
         return 1
     for name, reason in report.skipped:
         print(f"skipped {name}: {reason}")

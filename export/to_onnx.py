@@ -21,10 +21,11 @@ import hashlib
 import json
 import sys
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
-from gaitnet.errors import GaitnetError, InputError
+from gaitnet.errors import InputError
 from gaitnet.io.atomic import atomic_write_text
+from gaitnet.training.scripts import USER_ERRORS, ScriptParser, error_line
 
 
 def run_predictor(args: argparse.Namespace) -> int:
@@ -100,15 +101,8 @@ def run_predictor(args: argparse.Namespace) -> int:
     return 0
 
 
-class _Parser(argparse.ArgumentParser):
-    """Usage errors are bad input too: one line (no usage block) and exit status 1."""
-
-    def error(self, message: str) -> NoReturn:
-        raise InputError(f"{self.prog}: {message} (see --help)")
-
-
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="export/to_onnx.py", description=__doc__.splitlines()[0])
+    parser = ScriptParser(prog="export/to_onnx.py", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="kind", required=True, metavar="KIND")
     p = sub.add_parser("predictor", help="DCT-GCN motion predictor checkpoint → ONNX")
     p.add_argument("--checkpoint", required=True, help="best.pt / last.pt of train/predictor.py")
@@ -127,11 +121,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args = build_parser().parse_args(argv)
         return args.func(args)
-    except (GaitnetError, OSError) as exc:
-        print(f"error: {' '.join(str(exc).split())}", file=sys.stderr)
+    except USER_ERRORS as exc:
+        print(f"error: {error_line(exc)}", file=sys.stderr)
         return 1
     except OnnxParityError as exc:
-        print(f"error: export failed: {' '.join(str(exc).split())}", file=sys.stderr)
+        print(f"error: export failed: {error_line(exc)}", file=sys.stderr)
         return 1
 
 

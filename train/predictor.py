@@ -24,14 +24,14 @@ import sys
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 import torch
 from torch.utils.data import DataLoader, DistributedSampler
 from tqdm import tqdm
 
 from gaitnet.config import config_to_dict, load_config, parse_config, save_config
-from gaitnet.errors import ConfigError, GaitnetError, InputError
+from gaitnet.errors import ConfigError, InputError
 from gaitnet.evaluation.metrics import mean_angle_error, mpjpe_per_horizon
 from gaitnet.io.atomic import atomic_write_text
 from gaitnet.motion.evaluation import (
@@ -64,6 +64,7 @@ from gaitnet.training.predictor import (
     loss_skeleton,
     prepared_with_split,
 )
+from gaitnet.training.scripts import USER_ERRORS, ScriptParser, error_line
 from gaitnet.training.seeding import restore_rng_state, rng_state, seed_everything
 
 logger = logging.getLogger("train.predictor")
@@ -417,15 +418,8 @@ def eval_only(cfg: PredictorTrainingConfig, args: argparse.Namespace, device: to
     return 0
 
 
-class _Parser(argparse.ArgumentParser):
-    """Usage errors are bad input too: one line (no usage block) and exit status 1."""
-
-    def error(self, message: str) -> NoReturn:
-        raise InputError(f"{self.prog}: {message} (see --help)")
-
-
 def get_args_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="train/predictor.py", description=__doc__.splitlines()[0])
+    parser = ScriptParser(prog="train/predictor.py", description=__doc__.splitlines()[0])
     parser.add_argument("--config", required=True, help="YAML config (configs/predictor/)")
     parser.add_argument(
         "--resume",
@@ -450,8 +444,8 @@ def cli(argv: list[str] | None = None) -> int:
     (gaitnet's error taxonomy, gaitnet/errors.py); anything else is a bug with a traceback."""
     try:
         return main(get_args_parser().parse_args(argv))
-    except (GaitnetError, OSError) as exc:
-        print(f"error: {' '.join(str(exc).split())}", file=sys.stderr)
+    except USER_ERRORS as exc:
+        print(f"error: {error_line(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
