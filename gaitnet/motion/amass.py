@@ -367,31 +367,3 @@ def find_amass_files(amass_root: str | Path) -> list[Path]:
     if not root.is_dir():
         raise AmassError(f"{root}: AMASS root folder does not exist")
     return sorted(p for p in root.rglob("*.npz") if p.name.endswith(("_poses.npz", "_stageii.npz")))
-
-
-_MOVED = {
-    "PREPARED_FORMAT_VERSION": "gaitnet.motion.prepared",
-    "PREPARED_KEYS": "gaitnet.motion.prepared",
-    "PrepareReport": "gaitnet.motion.prepared",
-    "PreparedWalking": "gaitnet.motion.prepared",
-    "load_prepared": "gaitnet.motion.prepared",
-    "prepare_walking_subset": "gaitnet.motion.prepared",
-    "heading_angle": "gaitnet.motion.heading",
-    "normalise_heading": "gaitnet.motion.heading",
-    "WalkingWindows": "gaitnet.motion.windows",
-}
-
-
-def __getattr__(name: str) -> object:
-    """Transitional: names that moved out of this module still resolve (with a warning)."""
-    if name not in _MOVED:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    import importlib
-    import warnings
-
-    warnings.warn(
-        f"gaitnet.motion.amass.{name} moved to {_MOVED[name]}.{name}",
-        DeprecationWarning,
-        stacklevel=2,
-    )
-    return getattr(importlib.import_module(_MOVED[name]), name)
