@@ -280,7 +280,7 @@ def _draws(loader_gen: torch.Generator) -> list:
     return out
 
 
-def test_every_generator_state_is_saved_and_restored(tmp_path: Path) -> None:
+def test_every_generator_state_is_saved_and_restored(tmp_path: Path, caplog) -> None:
     """rng_state -> checkpoint file (weights_only) -> restore_rng_state gives the same draws
     from python, numpy, torch CPU, every CUDA device (where there is one) and the loader."""
     from gaitnet.training.seeding import RNG_KEYS, restore_rng_state, rng_state, seed_everything
@@ -303,6 +303,14 @@ def test_every_generator_state_is_saved_and_restored(tmp_path: Path) -> None:
     assert all(a != b for a, b in zip(expected, scrambled, strict=True))
     with pytest.raises(ValueError, match="rng state"):
         restore_rng_state({**state, "numpy": {"keys": torch.zeros(3)}}, gen)
+    # A checkpoint from a machine with one more GPU: the devices both have are restored and a
+    # warning names the difference (a CPU machine restores none).
+    n_here = torch.cuda.device_count() if torch.cuda.is_available() else 0
+    extra = {**state, "cuda": [*state["cuda"], torch.get_rng_state()]}
+    with caplog.at_level(logging.WARNING, logger="gaitnet.training.seeding"):
+        restore_rng_state(extra, gen)
+    assert f"{n_here + 1} device(s), this machine {n_here}" in caplog.text
+    assert _draws(gen) == expected
     with pytest.raises(ValueError, match="keys"):
         restore_rng_state({"torch": state["torch"]}, gen)
 
