@@ -120,9 +120,7 @@ def angle_errors(est: Any, ref: Any) -> Any:
     if _is_tensor(est) or _is_tensor(ref):
         d = (est - ref).reshape(*est.shape[:-1], -1, 3)
         return d.abs().sum(dim=-1)
-    d = (np.asarray(est, np.float64) - np.asarray(ref, np.float64)).reshape(
-        *est.shape[:-1], -1, 3
-    )
+    d = (np.asarray(est, np.float64) - np.asarray(ref, np.float64)).reshape(*est.shape[:-1], -1, 3)
     return np.abs(d).sum(axis=-1)
 
 

@@ -100,8 +100,10 @@ class PredictorConfig:
                 raise ValueError(
                     f"PredictorConfig.{name} must be an integer in [1, {limit}], got {value!r}"
                 )
-        if not isinstance(self.n_blocks, int) or isinstance(self.n_blocks, bool) or not (
-            0 <= self.n_blocks <= 256
+        if (
+            not isinstance(self.n_blocks, int)
+            or isinstance(self.n_blocks, bool)
+            or not (0 <= self.n_blocks <= 256)
         ):
             raise ValueError(f"PredictorConfig.n_blocks must be in [0, 256], got {self.n_blocks!r}")
         if self.dct_n > self.seq_len:
