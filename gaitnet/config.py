@@ -336,7 +336,9 @@ def _build(cls: type[T], data: Any, source: str, prefix: str) -> T:
     try:
         return cls(**kwargs)
     except (ValueError, TypeError, ArithmeticError) as exc:  # __post_init__ range checks
-        raise ConfigError(f"{source}: {where}: {exc}") from exc
+        if prefix:
+            raise ConfigError(f"{source}: {where}: {exc}") from exc
+        raise ConfigError(f"{source}: {exc}") from exc
 
 
 def _type_name(tp: Any) -> str:
@@ -354,9 +356,10 @@ def _convert(tp: Any, value: Any, source: str, key: str) -> Any:
         args = typing.get_args(tp)
         if value is None and type(None) in args:
             return None
-        for arg in args:
-            if arg is type(None):
-                continue
+        candidates = [a for a in args if a is not type(None)]
+        if len(candidates) == 1:  # Optional[X]: X's own message names the inner key
+            return _convert(candidates[0], value, source, key)
+        for arg in candidates:
             try:
                 return _convert(arg, value, source, key)
             except ConfigError:

@@ -7,12 +7,11 @@ import numpy as np
 import pytest
 
 from gaitnet.geometry import make_T, so3_exp
-from gaitnet.io.types import AprilTagBoard
+from gaitnet.io.types import AprilTagBoard, tag_corners_in_board
 from gaitnet.sim.floor import (
     FLOOR_FAMILIES,
     ClutterBox,
     make_floor,
-    tag_corners_in_board,
 )
 from gaitnet.sim.render import Lighting, render_frame
 from gaitnet.sim.render_color import encode_srgb8

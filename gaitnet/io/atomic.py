@@ -153,10 +153,16 @@ def atomic_save(path: str | Path, save: Callable[[str], None]) -> None:
 
 
 def check_output_folder(root: str | Path, overwrite: bool) -> Path:
-    """Refuse an output path that is a file, or a non-empty folder without ``overwrite``."""
+    """Refuse an output path that is a file, lies below a file, or is a non-empty folder
+    without ``overwrite``."""
     root = Path(root)
     if root.exists() and not root.is_dir():
         raise InputError(f"{root}: output path exists and is not a folder")
+    parent = root.absolute().parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise InputError(f"{root}: cannot create a folder below {parent}, which is a file")
     if root.is_dir() and any(root.iterdir()) and not overwrite:
         raise InputError(
             f"{root}: output exists and is not empty (choose another folder or add --overwrite)"

@@ -17,12 +17,8 @@ tag cells stay sharp whatever the floor's texel size; the renderer composites th
 floor. The floor may also carry the walls and ceiling of a room whose footprint is the texture's
 extent (``room_height_m``).
 
-Tag corner convention (used by :func:`tag_corners_in_board`): the board frame has z out of the
-paper (up when the sheet lies face up on the floor) and each tag reads correctly when seen from
-+z with board +x to the right and board +y up; corners are in OpenCV's aruco order (top-left,
-top-right, bottom-right, bottom-left of the marker as read), i.e. the classic ArUco marker frame
-``(-s/2, +s/2), (+s/2, +s/2), (+s/2, -s/2), (-s/2, -s/2)`` shifted to the tag centre. A sheet
-lying face up on the floor therefore has ``T_WfromBoard`` = a rotation about world z and z = 0.
+The tag corner convention is :class:`gaitnet.io.types.AprilTagBoard`'s
+(:func:`gaitnet.io.types.tag_corners_in_board`).
 """
 
 from __future__ import annotations
@@ -35,7 +31,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from gaitnet.io.types import AprilTagBoard, tag_corners_in_board  # noqa: F401 (re-export)
+from gaitnet.io.types import AprilTagBoard
 from gaitnet.sim.render_color import encode_srgb8, srgb_to_linear
 
 FloorFamily = Literal["tiles", "wood", "carpet", "concrete", "textureless"]
