@@ -17,8 +17,9 @@ import time
 
 from tqdm import tqdm
 
-from gaitnet.errors import GaitnetError
+from gaitnet.errors import USER_ERRORS, user_error_message
 from gaitnet.sim.amass_clips import SyntheticWalksConfig, make_synthetic_walks
+from gaitnet.training.scripts import ScriptParser
 
 
 def _band(text: str) -> tuple[float, float]:
@@ -31,7 +32,7 @@ def _band(text: str) -> tuple[float, float]:
 
 def main(argv: list[str] | None = None) -> int:
     d = SyntheticWalksConfig()
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ScriptParser(prog="data/make_synthetic_walks.py", description=__doc__.splitlines()[0])
     parser.add_argument("--out", required=True, help="root folder to write (AMASS-like layout)")
     parser.add_argument("--seed", type=int, default=d.seed, help="random seed, 0 ≤ N < 2**32")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing --out")
@@ -61,8 +62,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--rates", type=float, nargs="+", default=list(d.mocap_rates_hz), help="mocap rates [Hz]"
     )
-    args = parser.parse_args(argv)
     try:
+        args = parser.parse_args(argv)
         cfg = SyntheticWalksConfig(
             seed=args.seed,
             train_subjects=args.n_subjects[0],
@@ -73,9 +74,9 @@ def main(argv: list[str] | None = None) -> int:
             test_speed_bands=tuple(args.test_speeds),
             mocap_rates_hz=tuple(args.rates),
         )
-    except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    except (ValueError, *USER_ERRORS) as exc:  # the config's range checks raise ValueError
+        print(f"error: {user_error_message(exc)}", file=sys.stderr)
+        return 1
     t0 = time.perf_counter()
     try:
         report = make_synthetic_walks(
@@ -84,8 +85,8 @@ def main(argv: list[str] | None = None) -> int:
             overwrite=args.overwrite,
             progress=lambda jobs, total: tqdm(jobs, total=total, desc="subjects", unit="subject"),
         )
-    except (GaitnetError, OSError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
+    except USER_ERRORS as exc:
+        print(f"error: {user_error_message(exc)}", file=sys.stderr)
         return 1
     print(
         f"wrote {len(report.clips)} clips under {report.root} in {time.perf_counter() - t0:.0f} s"

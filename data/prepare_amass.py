@@ -16,9 +16,10 @@ import sys
 
 from tqdm import tqdm
 
+from gaitnet.errors import USER_ERRORS, user_error_message
 from gaitnet.motion.amass import DEFAULT_EXCLUDE, DEFAULT_INCLUDE, TARGET_FPS, DatasetSplit
 from gaitnet.motion.prepared import prepare_walking_subset
-from gaitnet.training.scripts import USER_ERRORS, ScriptParser, error_line
+from gaitnet.training.scripts import ScriptParser
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -54,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
             progress=lambda files, total: tqdm(files, total=total, desc="clips", unit="clip"),
         )
     except USER_ERRORS as exc:
-        print(f"error: {error_line(exc)}", file=sys.stderr)
+        print(f"error: {user_error_message(exc)}", file=sys.stderr)
         return 1
     for name, reason in report.skipped:
         print(f"skipped {name}: {reason}")

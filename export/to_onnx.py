@@ -23,9 +23,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from gaitnet.errors import InputError
+from gaitnet.errors import USER_ERRORS, InputError, user_error_message
 from gaitnet.io.atomic import atomic_write_text
-from gaitnet.training.scripts import USER_ERRORS, ScriptParser, error_line
+from gaitnet.training.scripts import ScriptParser
 
 
 def run_predictor(args: argparse.Namespace) -> int:
@@ -122,10 +122,10 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         return args.func(args)
     except USER_ERRORS as exc:
-        print(f"error: {error_line(exc)}", file=sys.stderr)
+        print(f"error: {user_error_message(exc)}", file=sys.stderr)
         return 1
     except OnnxParityError as exc:
-        print(f"error: export failed: {error_line(exc)}", file=sys.stderr)
+        print(f"error: export failed: {user_error_message(exc)}", file=sys.stderr)
         return 1
 
 

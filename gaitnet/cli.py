@@ -32,7 +32,7 @@ import numpy as np
 from tqdm import tqdm
 
 from gaitnet import __version__
-from gaitnet.errors import GaitnetError
+from gaitnet.errors import USER_ERRORS, GaitnetError, one_line, user_error_message
 
 log = logging.getLogger("gaitnet")
 
@@ -345,19 +345,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _one_line(text: str) -> str:
-    """One printable line: whitespace runs collapsed, undecodable bytes shown as ``\\xNN``."""
-    text = " ".join(text.split()) or "(no message)"
-    return text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
-
-
-def _describe_os_error(exc: OSError) -> str:
-    """``PATH: reason`` for an OSError on a user's path (no errno numbers, one line)."""
-    reason = exc.strerror or str(exc)
-    names = [str(n) for n in (exc.filename, exc.filename2) if n is not None]
-    return f"{' -> '.join(names)}: {reason}" if names else reason
-
-
 class _Terminated(KeyboardInterrupt):
     """SIGTERM, delivered as a KeyboardInterrupt so every cleanup path runs."""
 
@@ -399,13 +386,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             func: Callable[[argparse.Namespace], int] = args.func
             return func(args)
         except UsageError as exc:
-            print(f"{exc.prog}: error: {_one_line(str(exc))}", file=sys.stderr)
+            print(f"{exc.prog}: error: {one_line(exc)}", file=sys.stderr)
             return EXIT_USER_ERROR
-        except GaitnetError as exc:
-            print(f"{name}: error: {_one_line(str(exc))}", file=sys.stderr)
-            return EXIT_USER_ERROR
-        except OSError as exc:
-            print(f"{name}: error: {_one_line(_describe_os_error(exc))}", file=sys.stderr)
+        except USER_ERRORS as exc:
+            print(f"{name}: error: {user_error_message(exc)}", file=sys.stderr)
             return EXIT_USER_ERROR
         except _Terminated:
             print(f"{name}: terminated", file=sys.stderr)

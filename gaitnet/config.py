@@ -14,8 +14,9 @@ UTF-8; invalid YAML, duplicate keys, nesting deeper than :data:`MAX_DEPTH`, alia
 (``=5``, ``a..b=1``, ``a.b``, non-UTF-8 bytes); a ``_base_`` that is missing, a folder or
 recursive.
 
-:func:`config_to_dict` turns a config back into plain YAML-able data; :func:`save_config`
-writes the resolved config (atomically) next to a run's outputs.
+:func:`config_to_dict` turns a config back into plain YAML-able data and :func:`dump_config`
+into the YAML text that every run writes (atomically, through :mod:`gaitnet.io.atomic`) next
+to its outputs. This module imports nothing of gaitnet but its errors.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from typing import Any, TypeVar
 import numpy as np
 import yaml
 
-from gaitnet.errors import ConfigError
+from gaitnet.errors import ConfigError, one_line
 
 T = TypeVar("T")
 
@@ -87,15 +88,6 @@ def dump_config(cfg: Any) -> str:
     return yaml.safe_dump(config_to_dict(cfg), sort_keys=False)
 
 
-def save_config(cfg: Any, path: str | Path) -> Path:
-    """Write the resolved config as YAML (atomically) and return the path."""
-    from gaitnet.io.atomic import atomic_write_text  # io imports config: import here
-
-    path = Path(path)
-    atomic_write_text(path, dump_config(cfg))
-    return path
-
-
 def config_keys(cls: type, prefix: str = "") -> list[str]:
     """Dotted names of every key of a config dataclass tree (for docs and their tests).
 
@@ -146,15 +138,6 @@ _StrictLoader.add_implicit_resolver(
 )
 
 
-def _one_line(text: str) -> str:
-    return " ".join(str(text).split())
-
-
-def _printable(text: str) -> str:
-    """``text`` with undecodable bytes (surrogate escapes from argv) shown as ``\\xNN``."""
-    return text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
-
-
 def parse_yaml(text: str, source: str) -> Any:
     """Parse YAML ``text`` safely; ``source`` names it (a file, an override) in errors.
 
@@ -176,7 +159,7 @@ def parse_yaml(text: str, source: str) -> Any:
                     raise ConfigError(f"{source}: more than {MAX_ALIASES} YAML aliases")
         return yaml.load(text, Loader=_StrictLoader)  # a SafeLoader subclass
     except yaml.YAMLError as exc:
-        raise ConfigError(f"{source}: not valid YAML ({_one_line(str(exc))})") from exc
+        raise ConfigError(f"{source}: not valid YAML ({one_line(exc)})") from exc
     except RecursionError as exc:  # belt and braces: the depth check should prevent it
         raise ConfigError(f"{source}: nested too deeply") from exc
 
@@ -255,7 +238,7 @@ def _deep_merge(base: dict[str, Any], top: dict[str, Any]) -> dict[str, Any]:
 
 
 def _apply_override(data: dict[str, Any], item: str) -> None:
-    shown = _printable(item)
+    shown = one_line(item)
     try:
         item.encode("utf-8")
     except UnicodeEncodeError:

@@ -30,3 +30,30 @@ class InputError(GaitnetError):
     """Any other bad input: a command-line value, a result folder, a model or checkpoint file,
     a data set, labelme annotations, arrays handed to a model. The message names the file,
     option or input and what is wrong."""
+
+
+#: What the commands and entry scripts report as the user's error (one line, exit status 1).
+USER_ERRORS: tuple[type[BaseException], ...] = (GaitnetError, OSError)
+
+
+def one_line(text: object, limit: int | None = None) -> str:
+    """``text`` as one printable line: whitespace runs (newlines included) collapsed,
+    undecodable bytes (surrogate escapes from argv or file names) shown as ``\\xNN``, and cut
+    to ``limit`` characters when given (for messages quoted from other libraries)."""
+    line = " ".join(str(text).split())
+    line = line.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+    if limit is not None and len(line) > limit:
+        line = line[: limit - 3] + "..."
+    return line
+
+
+def user_error_message(exc: BaseException) -> str:
+    """The one-line message of a user's error; an ``OSError`` reads ``PATH: reason`` (no errno
+    numbers)."""
+    if isinstance(exc, OSError) and not isinstance(exc, GaitnetError):
+        reason = exc.strerror or str(exc)
+        names = [str(n) for n in (exc.filename, exc.filename2) if n is not None]
+        text = f"{' -> '.join(names)}: {reason}" if names else reason
+    else:
+        text = str(exc)
+    return one_line(text) or type(exc).__name__

@@ -246,21 +246,6 @@ def test_core_dependencies_are_used_and_extras_documented() -> None:
 # --- citations -----------------------------------------------------------------------------
 
 
-#: Citations of documents outside the project that colleagues are replacing (DESIGN.md's
-#: conventions are now docs/ecosystem.md, *Conventions*). A ratchet: an entry that no longer
-#: occurs must be removed, so the list only shrinks.
-NOT_YET_REPLACED = {
-    ("gaitnet/evaluation/evaluate.py", "DESIGN.md"),
-    ("gaitnet/training/seeding.py", "DESIGN.md"),
-    ("gaitnet/training/__init__.py", "STYLE.md"),
-    ("gaitnet/training/checkpoint.py", "STYLE.md"),
-    ("gaitnet/sim/scene.py", "DESIGN.md"),
-    ("gaitnet/motion/heading.py", "DESIGN.md"),
-    ("gaitnet/motion/skeleton.py", "DESIGN.md"),
-    ("gaitnet/io/labelme_io.py", "DESIGN.md"),
-}
-
-
 def test_every_cited_document_is_in_the_project() -> None:
     files = [ROOT / "README.md", *(ROOT / "docs").glob("*.md")]
     for folder in ("gaitnet", "train", "export", "data", "benchmarks", "tests"):
@@ -277,5 +262,4 @@ def test_every_cited_document_is_in_the_project() -> None:
             candidates = [ROOT / name, ROOT / "docs" / name, path.parent / name]
             if not any(c.is_file() for c in candidates):
                 missing.add((path.relative_to(ROOT).as_posix(), name))
-    assert missing <= NOT_YET_REPLACED, f"cited, not in the project: {missing - NOT_YET_REPLACED}"
-    assert missing >= NOT_YET_REPLACED, f"fixed, remove from the list: {NOT_YET_REPLACED - missing}"
+    assert not missing, f"cited, not in the project: {sorted(missing)}"

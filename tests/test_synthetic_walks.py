@@ -146,4 +146,4 @@ def test_script_smoke(tmp_path: Path) -> None:
         capture_output=True,
         text=True,
     )  # fmt: skip
-    assert bad.returncode == 2 and bad.stderr.startswith("error: ")
+    assert bad.returncode == 1 and bad.stderr.startswith("error: ") and bad.stderr.count("\n") == 1

@@ -30,8 +30,8 @@ import torch
 from torch.utils.data import DataLoader, DistributedSampler
 from tqdm import tqdm
 
-from gaitnet.config import config_to_dict, load_config, parse_config, save_config
-from gaitnet.errors import ConfigError, InputError
+from gaitnet.config import config_to_dict, dump_config, load_config, parse_config
+from gaitnet.errors import USER_ERRORS, ConfigError, InputError, user_error_message
 from gaitnet.evaluation.metrics import mean_angle_error, mpjpe_per_horizon
 from gaitnet.io.atomic import atomic_write_text
 from gaitnet.motion.evaluation import (
@@ -64,7 +64,7 @@ from gaitnet.training.predictor import (
     loss_skeleton,
     prepared_with_split,
 )
-from gaitnet.training.scripts import USER_ERRORS, ScriptParser, error_line
+from gaitnet.training.scripts import ScriptParser
 from gaitnet.training.seeding import restore_rng_state, rng_state, seed_everything
 
 logger = logging.getLogger("train.predictor")
@@ -323,7 +323,7 @@ def main(args: argparse.Namespace) -> int:
 
     metrics = None
     if info.is_main:
-        save_config(cfg, run_dir / "config.yaml")
+        atomic_write_text(run_dir / "config.yaml", dump_config(cfg))
         metrics = MetricsLogger(
             run_dir, METRICS, start_epoch=start_epoch, tensorboard=cfg.train.tensorboard
         )
@@ -445,7 +445,7 @@ def cli(argv: list[str] | None = None) -> int:
     try:
         return main(get_args_parser().parse_args(argv))
     except USER_ERRORS as exc:
-        print(f"error: {error_line(exc)}", file=sys.stderr)
+        print(f"error: {user_error_message(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)

@@ -1,6 +1,6 @@
 """``gaitnet evaluate``: compare a result folder with a session's ground truth.
 
-Reads whatever the result folder holds and reports the contract keys (DESIGN.md) that the
+Reads whatever the result folder holds and reports the contract keys (docs/design.md) that the
 inputs allow, in SI units:
 
 - ``mpjpe_m`` from ``RESULT_DIR/joints.npz`` (same layout as ``groundtruth/joints.npz``:
@@ -33,8 +33,8 @@ import numpy as np
 from gaitnet.errors import GaitnetError, InputError, SessionError
 from gaitnet.evaluation.metrics import ate_yaw_aligned, match_times, mpjpe
 from gaitnet.io.atomic import atomic_write_text
+from gaitnet.io.npz import npz_array, open_npz
 from gaitnet.io.trajectory import read_tum
-from gaitnet.motion.amass import npz_array, open_npz
 
 __all__ = ["JOINTS_FILE", "TRAJECTORY_FILE", "ResultEvaluation", "evaluate_result", "write_report"]
 

@@ -1,6 +1,7 @@
 """labelme annotations: label maps ⇄ labelme JSON polygons, and the ``labels.txt`` class list.
 
-Class values follow DESIGN.md: ``_background_`` 0, ``foot`` 1, ``leg`` 2, ``__ignore__`` 255.
+Class values follow docs/design.md, *Conventions*: ``_background_`` 0, ``foot`` 1, ``leg`` 2,
+``__ignore__`` 255.
 Masks are rasterised with labelme's own ``labelme.utils.shapes_to_label``, so what we read is
 exactly what labelme's converters (``labelme_export_json``, ``labelme2voc.py``) would produce.
 Shapes are painted in file order; we write legs before feet, so a foot drawn over a leg wins.

@@ -33,8 +33,6 @@ MPI_HDM05 (HDM05), SFU, MPI_mosh (MoSh); training = every other sub-dataset.
 from __future__ import annotations
 
 import math
-import zipfile
-import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path, PurePosixPath
@@ -43,14 +41,13 @@ from typing import Literal
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from gaitnet.errors import GaitnetError, InputError
+from gaitnet.errors import InputError
+from gaitnet.io.npz import npz_array, open_npz
 from gaitnet.motion.skeleton import ROTATED_SMPL_INDICES
 
 __all__ = [
     "DEFAULT_EXCLUDE",
     "DEFAULT_INCLUDE",
-    "NPZ_READ_ERRORS",
-    "npz_array",
     "TARGET_FPS",
     "AmassError",
     "DatasetSplit",
@@ -59,7 +56,6 @@ __all__ = [
     "find_amass_files",
     "is_walking_clip",
     "load_amass_clip",
-    "open_npz",
     "read_amass_npz",
     "read_clip_list",
     "resample_clip",
@@ -74,67 +70,8 @@ _SMPLX_KEYS = ("root_orient", "pose_body", "trans", "betas", "gender", "mocap_fr
 Split = Literal["train", "val", "test"]
 
 
-#: What reading a broken ``.npz`` raises (numpy, zipfile, zlib): caught and named by readers.
-NPZ_READ_ERRORS: tuple[type[BaseException], ...] = (
-    OSError,
-    ValueError,
-    EOFError,
-    KeyError,
-    zipfile.BadZipFile,
-    zlib.error,
-)
-
-
 class AmassError(InputError):
     """An AMASS file, clip list or prepared file is unusable; the message names file and key."""
-
-
-def _npz_reason(exc: BaseException) -> str:
-    """One line saying why numpy could not read an archive (never advice to unpickle)."""
-    text = " ".join(str(exc).split())
-    if "allow_pickle" in text:
-        if "pickled" in text:  # numpy took a non-zip file for a pickle
-            return "not an .npz archive"
-        return "an object array, which would need unpickling; gaitnet never unpickles data"
-    if isinstance(exc, EOFError) or not text:
-        return "the file is empty or truncated"
-    return text[:200]
-
-
-def open_npz(
-    path: str | Path, what: str, error: type[GaitnetError] = InputError
-) -> np.lib.npyio.NpzFile:
-    """``np.load(path, allow_pickle=False)`` of an ``.npz`` archive of named arrays.
-
-    A folder, a missing file, a file numpy cannot read and a plain ``.npy`` array are each an
-    ``error`` (a :class:`~gaitnet.errors.GaitnetError` class) naming the file and ``what`` it
-    should be; use the result as a context manager.
-    """
-    path = Path(path)
-    if path.is_dir():
-        raise error(f"{path}: is a folder, expected {what}")
-    if not path.is_file():
-        raise error(f"{path}: not found (expected {what})")
-    try:
-        data = np.load(path, allow_pickle=False)
-    except NPZ_READ_ERRORS as exc:
-        raise error(f"{path}: cannot be read as {what} ({_npz_reason(exc)})") from exc
-    if not isinstance(data, np.lib.npyio.NpzFile):
-        raise error(f"{path}: holds one array, expected {what} (an .npz archive of named arrays)")
-    return data
-
-
-def npz_array(
-    data: np.lib.npyio.NpzFile, path: str | Path, key: str, error: type[GaitnetError] = InputError
-) -> np.ndarray:
-    """``data[key]``; a corrupt member or an object array is an ``error`` naming file and key."""
-    try:
-        value = data[key]
-    except NPZ_READ_ERRORS as exc:
-        raise error(f"{path}: key {key!r} is not a readable array ({_npz_reason(exc)})") from exc
-    if not isinstance(value, np.ndarray):  # numpy hands back raw bytes of a non-.npy member
-        raise error(f"{path}: key {key!r} is not a readable array (not in .npy format)")
-    return value
 
 
 # --------------------------------------------------------------------------- clips

@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from gaitnet.errors import InputError
-from gaitnet.motion.amass import NPZ_READ_ERRORS, open_npz
+from gaitnet.io.npz import NPZ_READ_ERRORS, open_npz
 from gaitnet.motion.skeleton import (
     PARENTS,
     SMPL_JOINT_INDICES,

@@ -1,7 +1,7 @@
 """Heading of a body and heading normalisation of motion windows (pure math, z-up world).
 
 AMASS's world is z up. Each training window is rotated about the world vertical so that the
-body's heading at the LAST OBSERVED frame is +x (DESIGN.md: x forward), and its translation is
+body's heading at the LAST OBSERVED frame is +x (docs/design.md: x forward), and its translation is
 taken relative to that frame horizontally (:func:`normalise_heading`). The heading is the
 body's forward axis (SMPL's canonical +z, the way the rest pose faces) mapped by the root
 orientation and projected onto the floor. This also keeps the root axis-angle far from the ±π

@@ -26,7 +26,7 @@ import numpy as np
 import onnxruntime as ort
 import torch
 
-from gaitnet.errors import InputError
+from gaitnet.errors import InputError, one_line
 from gaitnet.io.atomic import atomic_save
 from gaitnet.motion.gcn import DCTGCN
 
@@ -66,10 +66,6 @@ class ExportReport:
 def _is_ort_error(exc: BaseException) -> bool:
     """onnxruntime's own exceptions (``onnxruntime.capi...Fail``, ``InvalidProtobuf``, ...)."""
     return type(exc).__module__.startswith("onnxruntime")
-
-
-def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split())[:300]
 
 
 def _session(path: Path, threads: int) -> ort.InferenceSession:
@@ -166,7 +162,7 @@ class OnnxPredictor:
             if not _is_ort_error(exc):
                 raise
             raise OnnxInputError(
-                f"ONNX model {self.path} cannot be loaded ({_one_line(exc)})"
+                f"ONNX model {self.path} cannot be loaded ({one_line(exc, limit=300)})"
             ) from exc
         inputs = self.session.get_inputs()
         if len(inputs) != 1:
@@ -238,7 +234,9 @@ class OnnxPredictor:
         except Exception as exc:
             if not _is_ort_error(exc):
                 raise
-            raise OnnxInputError(f"ONNX model {self.path} failed ({_one_line(exc)})") from exc
+            raise OnnxInputError(
+                f"ONNX model {self.path} failed ({one_line(exc, limit=300)})"
+            ) from exc
         for name, value in zip(self.output_names, outputs, strict=True):
             if not np.all(np.isfinite(value)):
                 raise OnnxInputError(

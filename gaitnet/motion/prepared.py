@@ -20,6 +20,7 @@ from typing import Literal
 import numpy as np
 
 from gaitnet.io.atomic import atomic_open
+from gaitnet.io.npz import npz_array, open_npz
 from gaitnet.motion.amass import (
     DEFAULT_EXCLUDE,
     DEFAULT_INCLUDE,
@@ -30,8 +31,6 @@ from gaitnet.motion.amass import (
     find_amass_files,
     is_walking_clip,
     load_amass_clip,
-    npz_array,
-    open_npz,
     read_clip_list,
 )
 from gaitnet.motion.skeleton import N_ROTATED

@@ -1,6 +1,6 @@
 """Lower-body skeleton in the SMPL convention and its forward kinematics (numpy and torch).
 
-Joints (SMPL indices and names, DESIGN.md): pelvis 0, L_hip 1, R_hip 2, L_knee 4, R_knee 5,
+Joints (SMPL indices and names, docs/design.md): pelvis 0, L_hip 1, R_hip 2, L_knee 4, R_knee 5,
 L_ankle 7, R_ankle 8, L_foot 10, R_foot 11. Arrays of joints here always hold them in the order
 of :data:`SMPL_JOINT_INDICES`; "local" index ``i`` means position ``i`` in that order.
 

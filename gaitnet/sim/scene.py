@@ -16,7 +16,7 @@ import numpy as np
 Side = Literal["left", "right"]
 SIDES: tuple[Side, Side] = ("left", "right")
 
-# Label values (DESIGN.md): 0 background, 1 foot, 2 leg, 255 ignore.
+# Label values (docs/design.md, *Conventions*): 0 background, 1 foot, 2 leg, 255 ignore.
 LABEL_BACKGROUND, LABEL_FOOT, LABEL_LEG, LABEL_IGNORE = 0, 1, 2, 255
 # Instance values: 0 none, 1 left, 2 right.
 INSTANCE_NONE, INSTANCE_LEFT, INSTANCE_RIGHT = 0, 1, 2

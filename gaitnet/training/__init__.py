@@ -1,4 +1,5 @@
-"""Training infrastructure shared by the entry scripts in ``train/`` (STYLE.md, torchvision refs).
+"""Training infrastructure shared by the entry scripts in ``train/`` (shaped after
+torchvision's ``references/`` scripts).
 
 * :mod:`~gaitnet.training.distributed`: torchrun environment (``RANK``, ``WORLD_SIZE``,
   ``LOCAL_RANK``), process group (only when ``WORLD_SIZE > 1``; gloo on CPU), reductions;

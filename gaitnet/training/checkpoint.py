@@ -1,6 +1,6 @@
 """Checkpoints: atomic ``last.pt`` / ``best.pt`` that load with ``weights_only=True``.
 
-A checkpoint is a plain dict (torchvision references, STYLE.md): ``model``, ``optimizer``,
+A checkpoint is a plain dict (as in torchvision's ``references/``): ``model``, ``optimizer``,
 ``scheduler`` (state dicts), ``epoch`` (the last COMPLETED epoch, 0-based), ``best_metric``
 and ``best_epoch`` (model selection on the validation split), ``config`` (the resolved config
 as plain data, :func:`gaitnet.config.config_to_dict`), ``git_hash`` and ``rng`` (one dict per
@@ -32,7 +32,7 @@ from typing import Any, Protocol
 
 import torch
 
-from gaitnet.errors import InputError
+from gaitnet.errors import InputError, one_line
 from gaitnet.io.atomic import atomic_save
 
 __all__ = [
@@ -121,11 +121,6 @@ def save_checkpoint(state: Mapping[str, Any], path: str | Path) -> Path:
     return path
 
 
-def _one_line(text: str, limit: int = 300) -> str:
-    line = " ".join(text.split())
-    return line if len(line) <= limit else line[: limit - 3] + "..."
-
-
 def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") -> dict[str, Any]:
     """``torch.load(path, weights_only=True)`` with one-line errors and a key check."""
     path = Path(path)
@@ -148,7 +143,7 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
         ) from exc
     except Exception as exc:  # truncated or foreign files raise many kinds (OSError too)
         text = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
-        reason = _one_line(text.split(". ")[0]) or type(exc).__name__
+        reason = one_line(text.split(". ")[0], limit=300) or type(exc).__name__
         raise CheckpointError(
             f"checkpoint {path} cannot be read: empty, truncated or not a checkpoint ({reason})"
         ) from exc
@@ -181,5 +176,5 @@ def load_state(target: _Stateful, state: Any, path: str | Path, what: str) -> No
     except (RuntimeError, ValueError, KeyError, TypeError, IndexError, AttributeError) as exc:
         raise CheckpointError(
             f"checkpoint {path}: its {what} state does not fit "
-            f"(another architecture?): {_one_line(str(exc))}"
+            f"(another architecture?): {one_line(exc, limit=300)}"
         ) from exc

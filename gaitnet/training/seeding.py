@@ -1,6 +1,6 @@
 """Seeding, and the state of every random generator a run uses (for a bit-exact resume).
 
-The same seed and config give the same run (DESIGN.md conventions). A resumed run must also
+The same seed and config give the same run (docs/design.md, *Conventions*). A resumed run must also
 draw the same numbers as an uninterrupted one, so a checkpoint holds the state of every
 generator the training scripts use (:func:`rng_state`), restored by :func:`restore_rng_state`:
 
