@@ -218,6 +218,23 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_simulator_options(p: argparse.ArgumentParser, out_help: str) -> None:
+    """Options shared by the simulator commands: config, overrides, seed, output folder."""
+    p.add_argument(
+        "--config", metavar="FILE", default=None, help="YAML simulator config (default: built-in)"
+    )
+    p.add_argument(
+        "--seed",
+        metavar="N",
+        type=_integer,
+        default=0,
+        help="random seed, 0 ≤ N < 2**32 (default 0)",
+    )
+    p.add_argument("--out", metavar="DIR", type=_output_folder, required=True, help=out_help)
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every command (``gaitnet --help``)."""
     parser = Parser(
@@ -263,43 +280,20 @@ def build_parser() -> argparse.ArgumentParser:
         description="Write a session folder plus groundtruth/ (docs/simulator.md). Same seed "
         "and config give byte-identical output.",
     )
-    p.add_argument(
-        "--config", metavar="FILE", default=None, help="YAML config (default: built-in defaults)"
-    )
-    p.add_argument(
-        "--seed",
-        metavar="N",
-        type=_integer,
-        default=0,
-        help="random seed, 0 ≤ N < 2**32 (default 0)",
-    )
-    p.add_argument(
-        "--out", metavar="DIR", type=_output_folder, required=True, help="output session folder"
-    )
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
-    p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides")
+    _add_simulator_options(p, out_help="output session folder")
     p.set_defaults(func=_cmd_simulate)
 
     p = sub.add_parser(
         "simulate-dataset",
         help="render labelled frames (RGB, depth, gravity, labels, labelme JSON) for segmentation",
-        description="Each frame has its own random subject, floor, lighting and camera pitch. "
+        description="Each frame has its own random subject, floor and lighting; the camera "
+        "pitch is the config's mount.pitch_deg (a number or a range) or --pitch-min/--pitch-max. "
         "Layout: see gaitnet/sim/dataset.py and docs/simulator.md.",
     )
-    p.add_argument(
-        "--config", metavar="FILE", default=None, help="YAML simulator config (default: built-in)"
-    )
+    _add_simulator_options(p, out_help="output folder")
     p.add_argument(
         "--n", metavar="N", type=_integer, required=True, help="number of frames, 1–1000000"
     )
-    p.add_argument(
-        "--seed",
-        metavar="N",
-        type=_integer,
-        default=0,
-        help="random seed, 0 ≤ N < 2**32 (default 0)",
-    )
-    p.add_argument("--out", metavar="DIR", type=_output_folder, required=True, help="output folder")
     p.add_argument("--labelme", action="store_true", help="also write labelme JSON polygons")
     p.add_argument(
         "--pitch-min",
@@ -312,8 +306,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--pitch-max", metavar="DEG", type=_finite_float, default=None, help="see --pitch-min"
     )
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
-    p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides")
     p.set_defaults(func=_cmd_simulate_dataset)
 
     p = sub.add_parser(

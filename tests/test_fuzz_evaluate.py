@@ -183,6 +183,10 @@ CASES: dict[str, Breaker] = {
     "tum_one_pose": _tum_lines(lambda ls: ls[:1]),
     "tum_empty": _write("camera_frames.tum", b""),
     "tum_non_utf8": _write("camera_frames.tum", b"0.0 1 2 3 0 0 0 1\n\xff\xfe\n"),
+    "tum_zero_quaternion": _tum_lines(
+        lambda ls: [f"{' '.join(ln.split()[:4])} 0 0 0 0" for ln in ls]
+    ),
+    "tum_comments_only": _write("camera_frames.tum", b"# t tx ty tz qx qy qz qw\n"),
     "gt_joints_missing": _no_gt_joints,
     "gt_trajectory_nan": _nan_gt_trajectory,
     "no_ground_truth": _no_groundtruth,

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import json
 import math
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -87,14 +86,7 @@ def _load_trajectory(path: Path, error: type[GaitnetError]) -> tuple[np.ndarray,
     """Times [s] and positions (n, 3) of a TUM file, every value finite."""
     if not path.is_file():
         raise error(f"{path}: trajectory file not found")
-    try:
-        with warnings.catch_warnings():  # numpy warns about an empty file: the error says it
-            warnings.simplefilter("ignore", UserWarning)
-            t, T = read_tum(path)
-    except SessionError as exc:  # read_tum names the file; say which side it is on
-        raise error(str(exc)) from exc
-    if len(t) == 0:
-        raise error(f"{path}: no poses")
+    t, T = read_tum(path, error)
     p = T[:, :3, 3]
     if not (np.all(np.isfinite(t)) and np.all(np.isfinite(p))):
         raise error(f"{path}: non-finite times or positions")

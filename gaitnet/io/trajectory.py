@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gaitnet.errors import SessionError
+from gaitnet.errors import GaitnetError, SessionError
 from gaitnet.geometry import T_from_tum, tum_from_T
 from gaitnet.io.atomic import atomic_write_text
 
@@ -38,17 +38,36 @@ def write_tum(path: str | Path, t_s: np.ndarray, T_WfromS: np.ndarray, comment: 
     atomic_write_text(path, tum_text(t_s, T_WfromS, comment))
 
 
-def read_tum(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """Read a TUM trajectory: times (n,) and poses ``T_WfromS`` (n, 4, 4)."""
+def read_tum(
+    path: str | Path, error: type[GaitnetError] = SessionError
+) -> tuple[np.ndarray, np.ndarray]:
+    """Read a TUM trajectory: times (n,) and poses ``T_WfromS`` (n, 4, 4).
+
+    Every failure is an ``error`` naming the file: not UTF-8, no poses, rows that are not
+    8 numbers, non-finite values, a quaternion of (near) zero norm, times not increasing.
+    """
     path = Path(path)
+    if path.is_dir():
+        raise error(f"{path}: is a folder, expected a TUM trajectory file")
     try:
-        data = np.loadtxt(path, comments="#", ndmin=2)
-    except (OSError, ValueError) as exc:
-        raise SessionError(f"{path}: not a TUM trajectory ({exc})") from exc
-    if data.shape[1] != 8:
-        raise SessionError(f"{path}: TUM rows need 8 columns, found {data.shape[1]}")
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(f"{path}: not a TUM trajectory (byte {exc.start} is not UTF-8 text)") from exc
+    rows = [line.split() for line in text.splitlines()]
+    rows = [row for row in rows if row and not row[0].startswith("#")]
+    if not rows:
+        raise error(f"{path}: no poses")
+    for i, row in enumerate(rows):
+        if len(row) != 8:
+            raise error(f"{path}: TUM rows need 8 columns, pose {i} has {len(row)}")
+    try:
+        data = np.array(rows, dtype=np.float64)
+    except ValueError as exc:
+        raise error(f"{path}: not a TUM trajectory (a value is not a number)") from exc
     if not np.all(np.isfinite(data)):
-        raise SessionError(f"{path}: non-finite values")
+        raise error(f"{path}: non-finite values")
+    if np.any(np.linalg.norm(data[:, 4:8], axis=1) < 1e-6):
+        raise error(f"{path}: a quaternion has zero length")
     if np.any(np.diff(data[:, 0]) <= 0):
-        raise SessionError(f"{path}: timestamps are not strictly increasing")
+        raise error(f"{path}: timestamps are not strictly increasing")
     return data[:, 0], T_from_tum(data[:, 1:])
