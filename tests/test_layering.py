@@ -12,6 +12,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "gaitnet"
 #: package → layer; a package may import only packages of a lower layer (and itself).
 LAYERS = {
     "errors": 0,
+    "checks": 1,
     "config": 1,
     "geometry": 1,
     "io": 2,

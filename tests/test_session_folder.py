@@ -247,30 +247,30 @@ def test_calibration_types_validate_and_round_trip(tmp_path: Path) -> None:
     cam = CameraIntrinsics(np.int64(32), 24, np.float64(30.0), 30.0, np.float32(15.5), 11.5)
     assert cam == calib.color and type(cam.width) is int and type(cam.fx) is float
     for kwargs, fragment in [
-        (dict(fx=float("nan")), "fx must be finite"),
-        (dict(width=0), "width must be at least 1"),
+        (dict(fx=float("nan")), "fx must be a finite number"),
+        (dict(width=0), "width must be an integer of at least 1"),
         (dict(width=32.0), "width must be an integer"),
-        (dict(cy=float("inf")), "cy must be finite"),
-        (dict(distortion=(0.0, float("nan"))), "distortion[1] must be finite"),
+        (dict(cy=float("inf")), "cy must be a finite number"),
+        (dict(distortion=(0.0, float("nan"))), "distortion[1] must be a finite number"),
     ]:
         args = dict(width=32, height=24, fx=30.0, fy=30.0, cx=15.5, cy=11.5) | kwargs
         with pytest.raises(ValueError) as excinfo:
             CameraIntrinsics(**args)
         assert fragment in str(excinfo.value)
-    with pytest.raises(ValueError, match="gyro_noise_density must not be negative"):
+    with pytest.raises(ValueError, match="gyro_noise_density must be at least 0"):
         ImuNoise(-1.0, 0.0, 0.0, 0.0)
-    with pytest.raises(ValueError, match="accel_bias_random_walk must be finite"):
+    with pytest.raises(ValueError, match="accel_bias_random_walk must be a finite number"):
         ImuNoise(0.0, 0.0, 0.0, float("nan"))
     reflection = np.diag([1.0, 1.0, -1.0, 1.0])
     with pytest.raises(ValueError, match="T_WfromBoard is not a rigid transform"):
         AprilTagBoard("b", "tag36h11", 2, 2, 0.04, 0.01, 0, reflection)
     board = calib.apriltag_boards[0]
     for kwargs, fragment in [
-        (dict(depth_scale_m=float("nan")), "depth_scale_m must be finite"),
+        (dict(depth_scale_m=float("nan")), "depth_scale_m must be a finite number"),
         (dict(depth_scale_m=-0.001), "depth_scale_m must be positive"),
         (dict(T_CfromI=np.full((4, 4), np.nan)), "T_CfromI must be finite"),
         (dict(apriltag_boards=(board, board)), "two AprilTag boards are named 'start'"),
-        (dict(extra={"x": float("inf")}), "extra.x must be finite"),
+        (dict(extra={"x": float("inf")}), "extra.x must be a finite number"),
         (dict(extra={"x": object()}), "extra.x must be plain data"),
     ]:
         with pytest.raises(ValueError) as excinfo:

@@ -29,6 +29,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from gaitnet.checks import check_int_range, check_positive, check_range
+
 SESSION_FORMAT_VERSION = 1
 T_NS_MAX = 2**63 - 1
 """Largest timestamp [ns] a session can hold (int64); timestamps are never negative."""
@@ -38,28 +40,6 @@ RIGID_TOLERANCE = 1e-5
 
 def _set(obj: Any, name: str, value: Any) -> None:
     object.__setattr__(obj, name, value)
-
-
-def _int(value: Any, name: str, minimum: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise ValueError(f"{name} must be an integer, got {value!r}")
-    value = int(value)
-    if minimum is not None and value < minimum:
-        raise ValueError(f"{name} must be at least {minimum}, got {value}")
-    return value
-
-
-def _float(value: Any, name: str, positive: bool = False, non_negative: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    number = float(value)
-    if not math.isfinite(number):
-        raise ValueError(f"{name} must be finite, got {number}")
-    if positive and number <= 0:
-        raise ValueError(f"{name} must be positive, got {number}")
-    if non_negative and number < 0:
-        raise ValueError(f"{name} must not be negative, got {number}")
-    return number
 
 
 def rigid_transform(T: Any, name: str) -> np.ndarray:
@@ -98,7 +78,7 @@ def plain_data(value: Any, name: str = "extra") -> Any:
     if isinstance(value, numbers.Integral):
         return int(value)
     if isinstance(value, numbers.Real):
-        return _float(value, name)
+        return check_range(name, value)
     if isinstance(value, Mapping):
         out = {}
         for key, item in value.items():
@@ -136,12 +116,12 @@ class CameraIntrinsics:
     distortion: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
-        _set(self, "width", _int(self.width, "width", minimum=1))
-        _set(self, "height", _int(self.height, "height", minimum=1))
+        _set(self, "width", check_int_range("width", self.width, 1))
+        _set(self, "height", check_int_range("height", self.height, 1))
         for name in ("fx", "fy"):
-            _set(self, name, _float(getattr(self, name), name, positive=True))
+            _set(self, name, check_positive(name, getattr(self, name)))
         for name in ("cx", "cy"):
-            _set(self, name, _float(getattr(self, name), name))
+            _set(self, name, check_range(name, getattr(self, name)))
         if isinstance(self.distortion, (str, bytes)) or not hasattr(self.distortion, "__len__"):
             raise ValueError(f"distortion must be a list of numbers, got {self.distortion!r}")
         if len(self.distortion) > 14:
@@ -149,7 +129,7 @@ class CameraIntrinsics:
         _set(
             self,
             "distortion",
-            tuple(_float(d, f"distortion[{i}]") for i, d in enumerate(self.distortion)),
+            tuple(check_range(f"distortion[{i}]", d) for i, d in enumerate(self.distortion)),
         )
 
     @property
@@ -191,7 +171,7 @@ class ImuNoise:
             "gyro_bias_random_walk",
             "accel_bias_random_walk",
         ):
-            _set(self, name, _float(getattr(self, name), name, non_negative=True))
+            _set(self, name, check_range(name, getattr(self, name), 0.0))
 
 
 @dataclass(frozen=True)
@@ -227,11 +207,11 @@ class AprilTagBoard:
         for name in ("name", "family"):
             if not isinstance(getattr(self, name), str) or not getattr(self, name):
                 raise ValueError(f"{name} must be a non-empty string, got {getattr(self, name)!r}")
-        _set(self, "rows", _int(self.rows, "rows", minimum=1))
-        _set(self, "cols", _int(self.cols, "cols", minimum=1))
-        _set(self, "tag_size_m", _float(self.tag_size_m, "tag_size_m", positive=True))
-        _set(self, "gap_m", _float(self.gap_m, "gap_m", non_negative=True))
-        _set(self, "first_id", _int(self.first_id, "first_id", minimum=0))
+        _set(self, "rows", check_int_range("rows", self.rows, 1))
+        _set(self, "cols", check_int_range("cols", self.cols, 1))
+        _set(self, "tag_size_m", check_positive("tag_size_m", self.tag_size_m))
+        _set(self, "gap_m", check_range("gap_m", self.gap_m, 0.0))
+        _set(self, "first_id", check_int_range("first_id", self.first_id, 0))
         _set(self, "T_WfromBoard", rigid_transform(self.T_WfromBoard, "T_WfromBoard"))
 
     @property
@@ -283,7 +263,7 @@ class SessionCalibration:
         for name in ("color", "depth"):
             if not isinstance(getattr(self, name), CameraIntrinsics):
                 raise ValueError(f"{name} must be CameraIntrinsics, got {getattr(self, name)!r}")
-        _set(self, "depth_scale_m", _float(self.depth_scale_m, "depth_scale_m", positive=True))
+        _set(self, "depth_scale_m", check_positive("depth_scale_m", self.depth_scale_m))
         if not isinstance(self.depth_aligned_to_color, (bool, np.bool_)):
             raise ValueError("depth_aligned_to_color must be true or false")
         _set(self, "depth_aligned_to_color", bool(self.depth_aligned_to_color))

@@ -41,6 +41,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from gaitnet.checks import check_int_range, check_range
 from gaitnet.motion.dct import dct_matrix_torch, idct_matrix_torch
 from gaitnet.motion.skeleton import (
     JOINT_NAMES,
@@ -95,23 +96,15 @@ class PredictorConfig:
 
     def __post_init__(self) -> None:
         for name, limit in self.LIMITS.items():
-            value = getattr(self, name)
-            if not isinstance(value, int) or isinstance(value, bool) or not 1 <= value <= limit:
-                raise ValueError(
-                    f"PredictorConfig.{name} must be an integer in [1, {limit}], got {value!r}"
-                )
-        if (
-            not isinstance(self.n_blocks, int)
-            or isinstance(self.n_blocks, bool)
-            or not (0 <= self.n_blocks <= 256)
-        ):
-            raise ValueError(f"PredictorConfig.n_blocks must be in [0, 256], got {self.n_blocks!r}")
+            check_int_range(f"PredictorConfig.{name}", getattr(self, name), 1, limit)
+        check_int_range("PredictorConfig.n_blocks", self.n_blocks, 0, 256)
         if self.dct_n > self.seq_len:
             raise ValueError(
                 f"PredictorConfig.dct_n = {self.dct_n} exceeds n_past + n_future = {self.seq_len}"
             )
-        if not isinstance(self.dropout, (int, float)) or not 0.0 <= float(self.dropout) < 1.0:
-            raise ValueError(f"PredictorConfig.dropout must be in [0, 1), got {self.dropout!r}")
+        dropout = check_range("PredictorConfig.dropout", self.dropout, 0.0, 1.0)
+        if dropout == 1.0:
+            raise ValueError("PredictorConfig.dropout must be below 1 (1 drops every feature)")
 
     @property
     def seq_len(self) -> int:

@@ -58,10 +58,10 @@ from pathlib import Path
 
 import numpy as np
 
+from gaitnet.checks import check_each, check_int_range, check_range
 from gaitnet.io.atomic import atomic_open, atomic_write_text, staged_folder
 from gaitnet.motion.amass import DatasetSplit
 from gaitnet.motion.skeleton import ROTATED_SMPL_INDICES
-from gaitnet.sim.checks import check_each, check_int_range, check_range
 from gaitnet.sim.config import HEIGHT_LIMITS_M
 from gaitnet.sim.gait import GaitConfig, Walk, generate_walk
 from gaitnet.sim.scene_setup import SEED_LIMIT

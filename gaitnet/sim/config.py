@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from gaitnet.sim.checks import check_each, check_int_range, check_range
+from gaitnet.checks import check_each, check_int_range, check_range
 from gaitnet.sim.floor import COARSEST_TEXEL_M, FLOOR_FAMILIES, MAX_TEXTURE_SIDE
 from gaitnet.sim.gait import GaitConfig
 from gaitnet.sim.imu import ImuConfig

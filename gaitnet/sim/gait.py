@@ -46,8 +46,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
+from gaitnet.checks import check_range
 from gaitnet.motion.skeleton import LowerBodySkeleton
-from gaitnet.sim.checks import check_range
 from gaitnet.sim.gait_feet import FootTrajectory, adapt_heel_off, build_foot_trajectory
 from gaitnet.sim.gait_legs import R_PfromSMPL, leg_chain, smpl_pose_from_chain
 from gaitnet.sim.gait_pelvis import (

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gaitnet.checks import check_range
 from gaitnet.io.types import ImuNoise, ImuSamples
-from gaitnet.sim.checks import check_range
 
 # (R_WfromP (n,3,3), p_PinW (n,3), v (n,3), a (n,3), omega_P (n,3)) at times t (n,)
 PelvisKinematics = Callable[

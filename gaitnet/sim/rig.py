@@ -10,9 +10,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from gaitnet.checks import check_each, check_int_range, check_range
 from gaitnet.geometry import make_T, so3_exp
 from gaitnet.io.types import CameraIntrinsics
-from gaitnet.sim.checks import check_each, check_int_range, check_range
 
 # Camera looking along the pelvis x axis, level: camera x = −pelvis y, y = −pelvis z, z = pelvis x.
 R_PfromC_LEVEL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])

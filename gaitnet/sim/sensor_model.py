@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import ndtri
 
-from gaitnet.sim.checks import check_each, check_int_range, check_range
+from gaitnet.checks import check_each, check_int_range, check_range
 from gaitnet.sim.render_color import linear_to_srgb
 from gaitnet.sim.render_types import F32, RenderResult
 

@@ -23,7 +23,6 @@ errors weigh as position errors.
 from __future__ import annotations
 
 import logging
-import math
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -33,6 +32,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
+from gaitnet.checks import check_int_range, check_range
 from gaitnet.motion.amass import DatasetSplit
 from gaitnet.motion.gcn import NODE_JOINTS, PredictorConfig
 from gaitnet.motion.prepared import PreparedWalking, load_prepared
@@ -59,19 +59,6 @@ DEVICE_PATTERN = re.compile(r"^(auto|cpu|mps|cuda(:\d{1,3})?)$")
 _MAX_BATCH = 1 << 20
 
 
-def _check_int(key: str, value: int, low: int, high: int) -> None:
-    """``ValueError`` naming ``key`` unless ``low <= value <= high`` (an int, not a bool)."""
-    if not isinstance(value, int) or isinstance(value, bool) or not low <= value <= high:
-        raise ValueError(f"{key} must be an integer in [{low}, {high}], got {value!r}")
-
-
-def _check_float(key: str, value: float, low: float, high: float = math.inf) -> None:
-    """``ValueError`` naming ``key`` unless ``value`` is a finite number in ``[low, high]``."""
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-    if not ok or not math.isfinite(value) or not low <= value <= high:
-        raise ValueError(f"{key} must be a finite number in [{low:g}, {high:g}], got {value!r}")
-
-
 @dataclass(frozen=True)
 class DataConfig:
     """Prepared walking file, split mapping and windowing."""
@@ -87,9 +74,9 @@ class DataConfig:
     def __post_init__(self) -> None:
         if not str(self.prepared).strip():
             raise ValueError("data.prepared must name the prepared walking file")
-        _check_int("data.train_stride", self.train_stride, 1, 100_000)
-        _check_int("data.eval_stride", self.eval_stride, 1, 100_000)
-        _check_int("data.num_workers", self.num_workers, 0, 256)
+        check_int_range("data.train_stride", self.train_stride, 1, 100_000)
+        check_int_range("data.eval_stride", self.eval_stride, 1, 100_000)
+        check_int_range("data.num_workers", self.num_workers, 0, 256)
 
 
 @dataclass(frozen=True)
@@ -103,11 +90,11 @@ class LossConfig:
     body_model_gender: str = "neutral"
 
     def __post_init__(self) -> None:
-        _check_float("loss.w_mpjpe", self.w_mpjpe, 0.0, 1e6)
-        _check_float("loss.w_mae", self.w_mae, 0.0, 1e6)
+        check_range("loss.w_mpjpe", self.w_mpjpe, 0.0, 1e6)
+        check_range("loss.w_mae", self.w_mae, 0.0, 1e6)
         if self.w_mpjpe + self.w_mae <= 0:
             raise ValueError("loss.w_mpjpe and loss.w_mae must not both be zero")
-        _check_float("loss.skeleton_height_m", self.skeleton_height_m, 0.5, 2.5)
+        check_range("loss.skeleton_height_m", self.skeleton_height_m, 0.5, 2.5)
         if self.body_model_gender not in ("neutral", "male", "female"):
             raise ValueError(
                 "loss.body_model_gender must be 'neutral', 'male' or 'female', "
@@ -126,15 +113,15 @@ class OptimConfig:
     grad_clip_norm: float = 1.0
 
     def __post_init__(self) -> None:
-        _check_float("optim.lr", self.lr, 0.0, 10.0)
+        check_range("optim.lr", self.lr, 0.0, 10.0)
         if self.lr == 0:
             raise ValueError("optim.lr must be > 0")
-        _check_float("optim.weight_decay", self.weight_decay, 0.0, 10.0)
-        _check_int("optim.lr_step_epochs", self.lr_step_epochs, 1, 1_000_000)
-        _check_float("optim.lr_gamma", self.lr_gamma, 0.0, 1.0)
+        check_range("optim.weight_decay", self.weight_decay, 0.0, 10.0)
+        check_int_range("optim.lr_step_epochs", self.lr_step_epochs, 1, 1_000_000)
+        check_range("optim.lr_gamma", self.lr_gamma, 0.0, 1.0)
         if self.lr_gamma == 0:
             raise ValueError("optim.lr_gamma must be > 0")
-        _check_float("optim.grad_clip_norm (0 disables clipping)", self.grad_clip_norm, 0.0)
+        check_range("optim.grad_clip_norm (0 disables clipping)", self.grad_clip_norm, 0.0)
 
 
 @dataclass(frozen=True)
@@ -150,11 +137,11 @@ class TrainConfig:
     tensorboard: bool = True
 
     def __post_init__(self) -> None:
-        _check_int("train.epochs", self.epochs, 1, 1_000_000)
-        _check_int("train.batch_size", self.batch_size, 1, _MAX_BATCH)
-        _check_int("train.eval_batch_size", self.eval_batch_size, 1, _MAX_BATCH)
-        _check_int("train.seed", self.seed, 0, 2**32 - 1)
-        _check_int("train.num_threads (0: torch's default)", self.num_threads, 0, 1024)
+        check_int_range("train.epochs", self.epochs, 1, 1_000_000)
+        check_int_range("train.batch_size", self.batch_size, 1, _MAX_BATCH)
+        check_int_range("train.eval_batch_size", self.eval_batch_size, 1, _MAX_BATCH)
+        check_int_range("train.seed", self.seed, 0, 2**32 - 1)
+        check_int_range("train.num_threads (0: torch's default)", self.num_threads, 0, 1024)
         if not isinstance(self.device, str) or not DEVICE_PATTERN.match(self.device):
             raise ValueError(
                 f"train.device must be auto, cpu, cuda, cuda:N or mps, got {self.device!r}"
@@ -170,8 +157,8 @@ class EvalConfig:
     batch_size: int = 2048
 
     def __post_init__(self) -> None:
-        _check_int("eval.stride", self.stride, 1, 100_000)
-        _check_int("eval.batch_size", self.batch_size, 1, _MAX_BATCH)
+        check_int_range("eval.stride", self.stride, 1, 100_000)
+        check_int_range("eval.batch_size", self.batch_size, 1, _MAX_BATCH)
 
 
 @dataclass(frozen=True)
