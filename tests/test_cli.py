@@ -6,6 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from oneline import assert_one_line_exit
+
 import gaitnet
 
 
@@ -33,18 +35,11 @@ def test_check_reports_a_good_session(tiny_session: Path) -> None:
     assert "frames    4" in result.stdout and "ok: every frame decoded" in result.stdout
 
 
-def _one_line_error(result: subprocess.CompletedProcess) -> str:
-    assert result.returncode == 1
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1, result.stderr
-    return lines[0]
-
-
 def test_check_truncated_png_one_line(tiny_session: Path) -> None:
     path = sorted((tiny_session / "color").iterdir())[0]
     path.write_bytes(path.read_bytes()[:100])
-    line = _one_line_error(run("check", str(tiny_session)))
-    assert str(path) in line and "truncated PNG" in line
+    result = run("check", str(tiny_session))
+    assert_one_line_exit(result.stderr, result.returncode, str(path), "truncated PNG")
 
 
 def test_check_wrong_depth_size_one_line(tiny_session: Path) -> None:
@@ -54,8 +49,8 @@ def test_check_wrong_depth_size_one_line(tiny_session: Path) -> None:
 
     path = sorted((tiny_session / "depth").iterdir())[1]
     path.write_bytes(encode_png(np.zeros((10, 10), np.uint16)))
-    line = _one_line_error(run("check", str(tiny_session)))
-    assert str(path) in line and "expected 32×24" in line
+    result = run("check", str(tiny_session))
+    assert_one_line_exit(result.stderr, result.returncode, str(path), "expected 32×24")
 
 
 def test_check_unsorted_imu_one_line(tiny_session: Path) -> None:
@@ -63,8 +58,8 @@ def test_check_unsorted_imu_one_line(tiny_session: Path) -> None:
     lines = path.read_text().splitlines()
     lines[2], lines[3] = lines[3], lines[2]
     path.write_text("\n".join(lines) + "\n")
-    line = _one_line_error(run("check", str(tiny_session)))
-    assert str(path) in line and "unsorted timestamps" in line
+    result = run("check", str(tiny_session))
+    assert_one_line_exit(result.stderr, result.returncode, str(path), "unsorted timestamps")
 
 
 def test_convert_folder_to_folder(tiny_session: Path, tmp_path: Path) -> None:
@@ -73,7 +68,7 @@ def test_convert_folder_to_folder(tiny_session: Path, tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     assert (out / "imu.csv").read_bytes() == (tiny_session / "imu.csv").read_bytes()
     again = run("convert", str(tiny_session), str(out))
-    assert "output exists and is not empty" in _one_line_error(again)
+    assert_one_line_exit(again.stderr, again.returncode, "output exists and is not empty")
 
 
 def test_convert_bag_to_folder(tmp_path: Path) -> None:
@@ -90,17 +85,21 @@ def test_convert_bag_to_folder(tmp_path: Path) -> None:
 def test_check_garbage_bag_one_line(tmp_path: Path) -> None:
     path = tmp_path / "broken.bag"
     path.write_bytes(b"#ROSBAG V2.0\n" + b"\x00" * 50)
-    line = _one_line_error(run("check", str(path)))
-    assert str(path) in line
+    result = run("check", str(path))
+    assert_one_line_exit(result.stderr, result.returncode, str(path))
 
 
 def test_simulate_unknown_config_key_one_line(tmp_path: Path) -> None:
     bad = tmp_path / "bad.yaml"
     bad.write_text("scene:\n  floor_famly: wood\n")
-    line = _one_line_error(run("simulate", "--config", str(bad), "--out", str(tmp_path / "o")))
-    assert str(bad) in line and "unknown key 'scene.floor_famly'" in line
-    line = _one_line_error(run("simulate", "--out", str(tmp_path / "o"), "camera.width=wide"))
-    assert "key 'camera.width' expects int, got 'wide'" in line
+    result = run("simulate", "--config", str(bad), "--out", str(tmp_path / "o"))
+    assert_one_line_exit(
+        result.stderr, result.returncode, str(bad), "unknown key 'scene.floor_famly'"
+    )
+    result = run("simulate", "--out", str(tmp_path / "o"), "camera.width=wide")
+    assert_one_line_exit(
+        result.stderr, result.returncode, "key 'camera.width' expects int, got 'wide'"
+    )
 
 
 def test_sigterm_during_simulate_cleans_up(tmp_path: Path) -> None:

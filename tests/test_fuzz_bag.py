@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from bagfactory import FAULTS, unindex_bag, write_empty_bag, write_sdk_bag
+from oneline import assert_one_line_exit
 
 from gaitnet.cli import main
 from gaitnet.io import SessionFolder
@@ -65,26 +66,16 @@ VALID: dict[str, Callable[[Path], Path]] = {
 }
 
 
-def _assert_one_line_error(capsys, rc: int, path: Path) -> str:
-    out = capsys.readouterr()
-    lines = [line for line in out.err.splitlines() if line.strip()]
-    assert rc == 1, out.err
-    assert len(lines) == 1, out.err
-    assert "Traceback" not in out.err
-    assert str(path) in lines[0], lines[0]
-    return lines[0]
-
-
 @pytest.mark.parametrize("case", sorted(BROKEN))
 def test_broken_bag_is_one_line_and_writes_nothing(case, tmp_path, capsys):
     path = BROKEN[case](tmp_path / f"{case}.bag")
     rc = main(["check", str(path)])
-    message = _assert_one_line_error(capsys, rc, path)
+    message = assert_one_line_exit(capsys, rc, str(path))
     assert message.startswith("gaitnet check: error: ")
 
     out = tmp_path / "out"
     rc = main(["convert", str(path), str(out)])
-    _assert_one_line_error(capsys, rc, path)
+    assert_one_line_exit(capsys, rc, str(path))
     assert not out.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]  # no staging leftovers
 
@@ -102,7 +93,7 @@ def test_messages_say_what_is_wrong(tmp_path, capsys):
     for case, fragment in expected.items():
         path = BROKEN[case](tmp_path / f"{case}.bag")
         rc = main(["check", str(path)])
-        assert fragment in _assert_one_line_error(capsys, rc, path)
+        assert_one_line_exit(capsys, rc, str(path), fragment)
 
 
 @pytest.mark.parametrize("case", sorted(VALID))

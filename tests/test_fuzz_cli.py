@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from oneline import assert_one_line_exit
 
 from gaitnet import cli
 from gaitnet.cli import main
@@ -244,12 +245,8 @@ def test_bad_arguments_exit_1_with_one_line(
     argv = [a.format(**fill) for a in argv]
     started = time.perf_counter()
     rc, out, err = run_main(argv, capsys)
-    lines = err.splitlines()
-    assert rc == 1, (rc, err)
-    assert len(lines) == 1 and lines[0].strip(), err
-    assert "Traceback" not in err
-    assert lines[0].startswith("gaitnet") and ": error: " in lines[0], lines[0]
-    assert expected.format(**fill) in lines[0], lines[0]
+    line = assert_one_line_exit(err, rc, ": error: ", expected.format(**fill))
+    assert line.startswith("gaitnet"), line
     assert out == ""
     assert not (tmp_path / "out").exists() and not any(tmp_path.iterdir())  # nothing written
     assert time.perf_counter() - started < 10, "refused too late (did it start simulating?)"
@@ -302,9 +299,8 @@ def test_os_error_on_a_user_path_is_exit_1_one_line(
 
     monkeypatch.setattr(cli, "_cmd_check", fail)
     rc, _, err = run_main(["check", places["session"]], capsys)
-    assert rc == 1 and len(err.splitlines()) == 1, err
-    assert err.startswith(f"gaitnet check: error: {error.filename}")
-    assert error.strerror in err and "Errno" not in err
+    line = assert_one_line_exit(err, rc, error.strerror)
+    assert line.startswith(f"gaitnet check: error: {error.filename}") and "Errno" not in line
 
 
 def test_interrupts(

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from oneline import assert_one_line_message
 
 from gaitnet.config import MAX_ALIASES, MAX_DEPTH, MAX_FILE_BYTES, load_config
 from gaitnet.errors import ConfigError
@@ -24,12 +25,6 @@ PREDICTOR_CONFIGS = sorted((ROOT / "configs" / "predictor").glob("*.yaml"))
 BILLION_LAUGHS = "a: &a [x, x, x, x, x, x, x, x, x]\n" + "".join(
     f"{n}: &{n} [{', '.join(['*' + p] * 9)}]\n" for p, n in zip("abcdefgh", "bcdefghi", strict=True)
 )
-
-
-def one_line_error(excinfo: pytest.ExceptionInfo[ConfigError]) -> str:
-    message = str(excinfo.value)
-    assert message and "\n" not in message, repr(message)
-    return message
 
 
 # (file name, file bytes, substrings the one-line message must contain); {path} is the file.
@@ -104,9 +99,8 @@ def test_broken_config_file_is_one_line_config_error(
     path = config_dir / f"{name}.yaml"
     with pytest.raises(ConfigError) as excinfo:
         load_config(SimConfig, path)
-    message = one_line_error(excinfo)
-    for part in expected:
-        assert part.format(path=path) in message, message
+    fragments = [part.format(path=path) for part in expected]
+    assert_one_line_message(excinfo, *fragments, error_type=ConfigError)
 
 
 def test_config_path_that_is_not_a_file(tmp_path: Path) -> None:
@@ -120,8 +114,7 @@ def test_config_path_that_is_not_a_file(tmp_path: Path) -> None:
     for path, expected in cases.items():
         with pytest.raises(ConfigError) as excinfo:
             load_config(SimConfig, path)
-        message = one_line_error(excinfo)
-        assert str(path) in message and expected in message, message
+        assert_one_line_message(excinfo, str(path), expected, error_type=ConfigError)
 
 
 # (override, substrings of the one-line message)
@@ -148,15 +141,13 @@ BROKEN_OVERRIDES: list[tuple[str, list[str]]] = [
 def test_broken_override_is_one_line_config_error(item: str, expected: list[str]) -> None:
     with pytest.raises(ConfigError) as excinfo:
         load_config(SimConfig, None, [item])
-    message = one_line_error(excinfo)
-    for part in expected:
-        assert part in message, message
+    assert_one_line_message(excinfo, *expected, error_type=ConfigError)
 
 
 def test_override_below_a_scalar_names_the_section() -> None:
     with pytest.raises(ConfigError) as excinfo:
         load_config(SimConfig, None, ["gait.speed_mps=1", "gait.speed_mps.x=2"])
-    assert "'gait.speed_mps' is not a section" in one_line_error(excinfo)
+    assert_one_line_message(excinfo, "'gait.speed_mps' is not a section", error_type=ConfigError)
 
 
 @pytest.mark.parametrize("path", SIM_CONFIGS, ids=lambda p: p.name)
@@ -222,8 +213,7 @@ def test_random_mutations_load_or_raise_one_line_config_error(tmp_path: Path, pa
         try:
             load_config(SimConfig, broken)
         except ConfigError as exc:
-            message = str(exc)
-            assert "\n" not in message and str(broken) in message, message
+            assert_one_line_message(exc, str(broken), error_type=ConfigError)
             outcomes["refused"] += 1
         else:
             outcomes["loaded"] += 1

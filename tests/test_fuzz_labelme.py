@@ -11,6 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from oneline import assert_one_line_message
 
 from gaitnet.errors import InputError
 from gaitnet.io.labelme_io import labelme_document, labels_txt, read_labelme, read_labels_txt
@@ -104,8 +105,8 @@ def test_broken_labelme_file_is_a_one_line_input_error(case, folder):
     BROKEN[case](path)
     with pytest.raises(InputError) as excinfo:
         read_labelme(path)
-    message = str(excinfo.value)
-    assert "\n" not in message and message.startswith(f"{path}: "), message
+    message = assert_one_line_message(excinfo, error_type=InputError)
+    assert message.startswith(f"{path}: "), message
 
 
 def test_messages_say_what_is_wrong(folder):
@@ -130,7 +131,8 @@ def test_broken_labels_txt(folder, content):
     path.write_bytes(content)
     with pytest.raises(InputError) as excinfo:
         read_labels_txt(path)
-    assert str(excinfo.value).startswith(f"{path}: ") and "\n" not in str(excinfo.value)
+    message = assert_one_line_message(excinfo, error_type=InputError)
+    assert message.startswith(f"{path}: "), message
 
 
 def test_valid_files_still_read(folder):

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import onnx
 import pytest
+from oneline import assert_one_line_message
 from onnx import TensorProto, helper
 
 from gaitnet.errors import InputError
@@ -35,13 +36,6 @@ def _valid(rng: np.random.Generator, batch: int = 3) -> np.ndarray:
     return rng.normal(scale=0.3, size=(batch, 10, 21))
 
 
-def _assert_one_line(exc: pytest.ExceptionInfo, *needles: str) -> None:
-    message = str(exc.value)
-    assert isinstance(exc.value, InputError) and "\n" not in message, message
-    for needle in needles:
-        assert needle in message, (needle, message)
-
-
 # ---------------------------------------------------------------------------- inputs
 
 
@@ -54,7 +48,7 @@ def test_non_finite_input_anywhere_is_refused(predictor: OnnxPredictor, seed: in
     dtype = np.float64 if seed % 4 == 3 else [np.float32, np.float64, np.float16][seed % 3]
     with pytest.raises(OnnxInputError) as exc:
         predictor(x.astype(dtype) if seed % 4 != 3 else x)
-    _assert_one_line(exc, str(MODEL), "past_poses", f"index {index}")
+    assert_one_line_message(exc, str(MODEL), "past_poses", f"index {index}", error_type=InputError)
 
 
 BAD_INPUTS = {
@@ -78,14 +72,14 @@ BAD_INPUTS = {
 def test_wrong_rank_shape_or_dtype_is_refused(predictor: OnnxPredictor, name: str) -> None:
     with pytest.raises(OnnxInputError) as exc:
         predictor(BAD_INPUTS[name])
-    _assert_one_line(exc, str(MODEL), "past_poses")
+    assert_one_line_message(exc, str(MODEL), "past_poses", error_type=InputError)
 
 
 def test_ragged_list_is_refused(predictor: OnnxPredictor) -> None:
     ragged = [[[0.0] * 21] * 10, [[0.0] * 21] * 9]
     with pytest.raises(OnnxInputError) as exc:
         predictor(ragged)
-    _assert_one_line(exc, str(MODEL), "past_poses")
+    assert_one_line_message(exc, str(MODEL), "past_poses", error_type=InputError)
 
 
 @pytest.mark.parametrize("kind", ["float32", "float64", "float16", "int64", "list"])
@@ -161,7 +155,7 @@ def test_broken_model_files_are_one_line(file_cases: dict[str, Path], case: str)
     with pytest.raises(OnnxInputError) as exc:
         predictor = OnnxPredictor(file_cases[case])
         predictor(np.zeros((1, 10, 21), np.float32))  # a file that loads must still fail here
-    _assert_one_line(exc, str(file_cases[case]))
+    assert_one_line_message(exc, str(file_cases[case]), error_type=InputError)
 
 
 def test_a_model_that_outputs_inf_is_refused(tmp_path: Path) -> None:
@@ -178,11 +172,11 @@ def test_a_model_that_outputs_inf_is_refused(tmp_path: Path) -> None:
     )
     with pytest.raises(OnnxInputError) as exc:
         OnnxPredictor(path)(np.ones((2, 10, 21), np.float32))
-    _assert_one_line(exc, str(path), "output 'poses' is not finite")
+    assert_one_line_message(exc, str(path), "output 'poses' is not finite", error_type=InputError)
 
 
 @pytest.mark.parametrize("threads", [-1, 1.5, True, 10**6])
 def test_bad_thread_counts(threads) -> None:
     with pytest.raises(OnnxInputError) as exc:
         OnnxPredictor(MODEL, threads=threads)
-    _assert_one_line(exc, "threads")
+    assert_one_line_message(exc, "threads", error_type=InputError)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from oneline import assert_one_line_exit
 from sessionfactory import make_tiny_session
 
 from gaitnet.cli import main
@@ -181,27 +182,17 @@ BROKEN: dict[str, Callable[[Path], Path]] = {
 }
 
 
-def _assert_one_line_error(capsys, rc: int, path: Path) -> str:
-    out = capsys.readouterr()
-    lines = [line for line in out.err.splitlines() if line.strip()]
-    assert rc == 1, out.err
-    assert len(lines) == 1, out.err
-    assert "Traceback" not in out.err
-    assert str(path) in lines[0], lines[0]
-    return lines[0]
-
-
 @pytest.mark.parametrize("case", sorted(BROKEN))
 def test_broken_session_is_one_line_and_writes_nothing(case, tmp_path, capsys):
     root = make_tiny_session(tmp_path / "session")
     broken = BROKEN[case](root)
     before = sorted(p.name for p in tmp_path.iterdir())
     rc = main(["check", str(root)])
-    assert _assert_one_line_error(capsys, rc, broken).startswith("gaitnet check: error: ")
+    assert assert_one_line_exit(capsys, rc, str(broken)).startswith("gaitnet check: error: ")
 
     out = tmp_path / "out"
     rc = main(["convert", str(root), str(out)])
-    _assert_one_line_error(capsys, rc, broken)
+    assert_one_line_exit(capsys, rc, str(broken))
     assert sorted(p.name for p in tmp_path.iterdir()) == before  # no output, no staging
 
 
@@ -220,7 +211,7 @@ def test_messages_name_the_key_and_the_problem(tmp_path, capsys):
         root = make_tiny_session(tmp_path / case)
         broken = BROKEN[case](root)
         rc = main(["check", str(root)])
-        assert fragment in _assert_one_line_error(capsys, rc, broken), case
+        assert_one_line_exit(capsys, rc, str(broken), fragment)
 
 
 def test_valid_sessions_still_pass(tmp_path, capsys):

@@ -19,6 +19,7 @@ import pytest
 import torch
 import yaml
 from amassfactory import walking_like_clip, write_smplh_poses
+from oneline import assert_one_line_exit
 
 from gaitnet.motion.amass import DatasetSplit
 from gaitnet.motion.prepared import prepare_walking_subset
@@ -96,15 +97,12 @@ def _snapshot(folder: Path) -> dict[str, bytes]:
 
 
 def _assert_one_line_error(capsys, argv: list[str], run_dir: Path, before: dict) -> str:
-    code = script.cli(argv)
-    err = capsys.readouterr().err
-    assert code == 1, (argv, err)
-    assert err.startswith("error: ") and err.count("\n") == 1, err
-    assert "Traceback" not in err and "weights_only=False" not in err
+    line = assert_one_line_exit(capsys, script.cli(argv))
+    assert line.startswith("error: ") and "weights_only=False" not in line, (argv, line)
     assert _snapshot(run_dir) == before  # no checkpoint written, none changed
     if not before:
         assert not run_dir.exists() or not any(run_dir.glob("*.pt"))
-    return err
+    return line
 
 
 # ---------------------------------------------------------------------------- options, configs

@@ -21,6 +21,7 @@ from bagfactory import (  # noqa: E402
     write_empty_bag,
     write_sdk_bag,
 )
+from oneline import assert_one_line_message  # noqa: E402
 
 from gaitnet.errors import SessionError  # noqa: E402
 from gaitnet.geometry import invert_T  # noqa: E402
@@ -39,14 +40,6 @@ def sdk_bag(tmp_path: Path):
 
 def expected_depth_m(raw: np.ndarray, units: float) -> np.ndarray:
     return (raw.astype(np.float64) * units).astype(np.float32)
-
-
-def assert_one_line_error(excinfo, path: Path, *fragments: str) -> None:
-    msg = str(excinfo.value)
-    assert "\n" not in msg
-    assert str(path) in msg
-    for fragment in fragments:
-        assert fragment in msg
 
 
 # -- frames -----------------------------------------------------------------------------------
@@ -320,7 +313,7 @@ def test_garbage_file_is_a_session_error(tmp_path):
     path.write_bytes(np.random.default_rng(0).bytes(5000))
     with pytest.raises(SessionError) as excinfo:
         RealSenseBag(path)
-    assert_one_line_error(excinfo, path, "not a readable ROS1 bag")
+    assert_one_line_message(excinfo, str(path), "not a readable ROS1 bag")
 
 
 def test_truncated_bag_is_a_session_error(sdk_bag):
@@ -328,7 +321,7 @@ def test_truncated_bag_is_a_session_error(sdk_bag):
     sdk_bag.path.write_bytes(data[: len(data) // 2])
     with pytest.raises(SessionError) as excinfo:
         RealSenseBag(sdk_bag.path)
-    assert_one_line_error(excinfo, sdk_bag.path)
+    assert_one_line_message(excinfo, str(sdk_bag.path))
 
 
 def test_bag_truncated_inside_the_index_is_a_session_error(sdk_bag):
@@ -336,14 +329,14 @@ def test_bag_truncated_inside_the_index_is_a_session_error(sdk_bag):
     sdk_bag.path.write_bytes(data[:-100])
     with pytest.raises(SessionError) as excinfo:
         RealSenseBag(sdk_bag.path)
-    assert_one_line_error(excinfo, sdk_bag.path)
+    assert_one_line_message(excinfo, str(sdk_bag.path))
 
 
 def test_empty_bag_is_a_session_error(tmp_path):
     path = write_empty_bag(tmp_path / "empty.bag")
     with pytest.raises(SessionError) as excinfo:
         RealSenseBag(path)
-    assert_one_line_error(excinfo, path, "no messages")
+    assert_one_line_message(excinfo, str(path), "no messages")
 
 
 def test_missing_file_is_a_session_error(tmp_path):
@@ -363,14 +356,14 @@ def test_missing_stream_is_a_session_error(tmp_path, missing, fragment):
     spec = write_sdk_bag(tmp_path / "partial.bag", n_frames=2, **{missing: False})
     with pytest.raises(SessionError) as excinfo:
         RealSenseBag(spec.path)
-    assert_one_line_error(excinfo, spec.path, fragment)
+    assert_one_line_message(excinfo, str(spec.path), fragment)
 
 
 def test_unsupported_encoding_is_a_session_error(tmp_path):
     spec = write_sdk_bag(tmp_path / "yuv.bag", color_encoding="yuv422", n_frames=2)
     with pytest.raises(SessionError) as excinfo:
         RealSenseBag(spec.path)
-    assert_one_line_error(excinfo, spec.path, "unsupported colour encoding 'yuv422'")
+    assert_one_line_message(excinfo, str(spec.path), "unsupported colour encoding 'yuv422'")
 
 
 # -- depth → colour alignment -----------------------------------------------------------------
@@ -486,8 +479,8 @@ def test_mixed_timestamp_domains_are_refused(tmp_path):
     spec = write_sdk_bag(tmp_path / "mixed.bag", n_frames=3, timestamp_domains=domains)
     with pytest.raises(SessionError) as excinfo:
         RealSenseBag(spec.path)
-    assert_one_line_error(
-        excinfo, spec.path, "colour image 'Global Time'", "gyroscope 'System Time'"
+    assert_one_line_message(
+        excinfo, str(spec.path), "colour image 'Global Time'", "gyroscope 'System Time'"
     )
 
 
@@ -507,7 +500,7 @@ def test_unindexed_bag_says_how_to_fix_it(tmp_path):
     unindex_bag(spec.path)
     with pytest.raises(SessionError) as excinfo:
         RealSenseBag(spec.path)
-    assert_one_line_error(excinfo, spec.path, "no index", "rosbag reindex cut.bag")
+    assert_one_line_message(excinfo, str(spec.path), "no index", "rosbag reindex cut.bag")
 
 
 def test_frames_out_of_order_are_sorted_with_a_warning(tmp_path, caplog):
