@@ -305,9 +305,10 @@ def test_mount_yaw_roll_offset_and_camera_intrinsics_in_the_pixels() -> None:
         h, w = cfg.camera.height, cfg.camera.width
         assert frame.rgb.shape == (h, w, 3) and frame.depth_m.shape == (h, w)
         u, v = np.meshgrid(np.arange(w), np.arange(h))
-        rays_C = np.stack([u, v, np.ones_like(u)], -1).reshape(-1, 3) @ np.linalg.inv(
-            cfg.camera.intrinsics().K
-        ).T
+        rays_C = (
+            np.stack([u, v, np.ones_like(u)], -1).reshape(-1, 3)
+            @ np.linalg.inv(cfg.camera.intrinsics().K).T
+        )
         down = (rays_C @ frame.T_WfromC[:3, :3].T)[:, 2].reshape(h, w) < 0
         background = frame.render.label == 0
         finite = np.isfinite(frame.render.depth_m)
