@@ -31,7 +31,7 @@ from gaitnet.sim.sensor_model import SensorNoiseConfig, apply_sensor
 R_PfromC_LEVEL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 APPEARANCE = Appearance((0.05, 0.08, 0.2), (0.5, 0.05, 0.04), (0.8, 0.8, 0.78))
 NO_BODY = BodyState((), ())
-QUIET = SensorNoiseConfig(dropout_fraction=0.0, blob_fraction=0.0)
+QUIET = SensorNoiseConfig(dropout_fraction=0.0, blob_fraction=0.0, flying_fraction=0.0)
 
 
 def K_of(width: int, height: int, f: float) -> np.ndarray:
