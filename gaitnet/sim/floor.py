@@ -13,9 +13,12 @@ fibre speckle, optional carpet tiles), ``concrete`` (low-frequency blotches, agg
 saw-cut joints), ``textureless`` (very low contrast vinyl).
 
 AprilTag sheets are separate high-resolution decals (:class:`TagSheet`, 0.5 mm texels) so the
-tag cells stay sharp whatever the floor's texel size; the renderer composites them over the
-floor. The floor may also carry the walls and ceiling of a room whose footprint is the texture's
-extent (``room_height_m``).
+tag cells stay sharp whatever the floor's texel size; they are stored as linear reflectance
+(float32) so that every average taken over them — the mip levels and the renderer's average
+over each pixel's footprint — is an average of light, as a camera pixel takes it (averaging
+sRGB codes darkens every mixed texel). The renderer composites them over the floor. The floor
+may also carry the walls and ceiling of a room whose footprint is the texture's extent
+(``room_height_m``).
 
 The tag corner convention is :class:`gaitnet.io.types.AprilTagBoard`'s
 (:func:`gaitnet.io.types.tag_corners_in_board`).
@@ -39,8 +42,11 @@ FLOOR_FAMILIES: tuple[FloorFamily, ...] = ("tiles", "wood", "carpet", "concrete"
 
 A3_PAPER_M = (0.420, 0.297)
 SHEET_TEXEL_M = 0.0005
-PAPER_RGB = (0.80, 0.79, 0.76)
-INK_RGB = (0.035, 0.035, 0.04)
+# Matte laser print on white office paper: paper ~80 % diffuse reflectance, black toner ~5 %
+# (docs/references.md, "Simulator realism: rendering"); the paper's slight warm tint is kept.
+PAPER_REFLECTANCE = 0.80
+INK_REFLECTANCE = 0.05
+PAPER_TINT = (1.0, 0.99, 0.95)
 MAX_TEXTURE_SIDE = 32000  # cv2.remap's fixed-point maps limit source images to < 32767 px
 COARSEST_TEXEL_M = 0.02
 
@@ -52,15 +58,18 @@ Extent = tuple[tuple[float, float], tuple[float, float]]
 class TagSheet:
     """A printed sheet (decal) lying on the floor, in its board frame (see module docstring).
 
-    ``levels[0]`` row ``i`` covers board ``y ∈ y1 - [i, i+1]·τ`` and column ``j`` covers
-    ``x ∈ x0 + [j, j+1]·τ`` (the page as seen from above), ``(x0, x1), (y0, y1) = extent_b``.
+    ``levels`` is a pyramid of linear reflectance (float32, single channel; the colour is
+    reflectance × ``tint``); ``levels[0]`` row ``i`` covers board ``y ∈ y1 - [i, i+1]·τ`` and
+    column ``j`` covers ``x ∈ x0 + [j, j+1]·τ`` (the page as seen from above),
+    ``(x0, x1), (y0, y1) = extent_b``.
     """
 
     name: str
     T_WfromBoard: np.ndarray
     extent_b: Extent
     texel_m: float
-    levels: tuple[NDArray[np.uint8], ...]
+    levels: tuple[NDArray[np.float32], ...]
+    tint: tuple[float, float, float] = PAPER_TINT
 
 
 @dataclass(frozen=True, eq=False)
@@ -383,10 +392,12 @@ def _render_family(
 # ----------------------------------------------------------------------------- pyramids
 
 
-def build_pyramid(img: NDArray[np.uint8], texel_m: float) -> tuple[NDArray[np.uint8], ...]:
-    """RGBA mip levels by repeated ``cv2.pyrDown`` until texels reach ~2 cm or the image is
-    tiny (4 channels: cv2.remap samples them twice as fast as 3)."""
-    if img.shape[2] == 3:
+def build_pyramid(img: NDArray, texel_m: float) -> tuple[NDArray, ...]:
+    """Mip levels by repeated ``cv2.pyrDown`` until texels reach ~2 cm or the image is tiny.
+
+    3-channel images become RGBA (cv2.remap samples 4 channels twice as fast as 3);
+    single-channel images stay single-channel."""
+    if img.ndim == 3 and img.shape[2] == 3:
         img = cv2.cvtColor(img, cv2.COLOR_RGB2RGBA)
     levels = [img]
     texel = texel_m
@@ -400,24 +411,25 @@ MIP_BLEND = 0.35  # width (in levels) of the cross-fade between two mip levels
 
 
 def sample_mipmapped(
-    levels: tuple[NDArray[np.uint8], ...],
+    levels: tuple[NDArray, ...],
     map_x: F32,
     map_y: F32,
     lod: F32,
     border: int = cv2.BORDER_REFLECT_101,
-) -> NDArray[np.uint8]:
+) -> NDArray:
     """Mip-mapped bilinear lookup: the level nearest to ``lod``, cross-faded with the next one
     over :data:`MIP_BLEND` levels around each half-way point (cheaper than full trilinear).
 
     ``map_x``, ``map_y`` (H, W) are level-0 texel coordinates (texel centres at integers);
-    ``lod`` (H, W) the fractional level; returns RGB (H, W, 3). Each level samples only the
-    rows it contributes to, and weights are only computed in rows that mix two levels.
+    ``lod`` (H, W) the fractional level; returns RGB (H, W, 3) for RGBA levels, else the
+    levels' channels, in the levels' type (uint8 or float32). Each level samples only the rows
+    it contributes to, and weights are only computed in rows that mix two levels.
     """
     top = len(levels) - 1
     lod = np.clip(lod, 0.0, top)
     row_lo, row_hi = lod.min(axis=1), lod.max(axis=1)
     reach = 0.5 + MIP_BLEND / 2  # a level contributes to lods within this distance
-    out = np.empty((*lod.shape, 4), np.uint8)
+    out = np.zeros(lod.shape + levels[0].shape[2:], levels[0].dtype)  # 0 · garbage may be NaN
     acc = np.zeros(lod.shape, np.float32)
     for lvl, tex in enumerate(levels):
         lo = -np.inf if lvl == 0 else lvl - reach
@@ -444,7 +456,7 @@ def sample_mipmapped(
             rows_mix = np.s_[r0 + b0 : r0 + b1]
             out[rows_mix] = cv2.blendLinear(out[rows_mix], img[b0:b1], acc[rows_mix], w)
             acc[rows_mix] += w
-    return cv2.cvtColor(out, cv2.COLOR_RGBA2RGB)
+    return cv2.cvtColor(out, cv2.COLOR_RGBA2RGB) if out.ndim == 3 and out.shape[2] == 4 else out
 
 
 # ----------------------------------------------------------------------------- tag sheets
@@ -517,15 +529,16 @@ def _check_board_on_floor(board: AprilTagBoard) -> np.ndarray:
 def make_tag_sheet(
     board: AprilTagBoard, rng: np.random.Generator, texel_m: float = SHEET_TEXEL_M
 ) -> TagSheet:
-    """Render ``board`` as an A3 sheet of white paper with its tags (module docstring frames)."""
+    """Render ``board`` as an A3 sheet of white paper with its tags (module docstring frames):
+    linear reflectance, exact box-filtered ink coverage per texel."""
     T = _check_board_on_floor(board)
     extent = _sheet_extent(board)
     ink = _sheet_blackness(board, extent, texel_m).astype(np.float32)
     shape = ink.shape
-    paper = np.asarray(PAPER_RGB, np.float32) * np.float32(rng.uniform(0.95, 1.05))
+    paper = np.float32(PAPER_REFLECTANCE * rng.uniform(0.95, 1.05))
     grain = 1.0 + 0.01 * cv2.GaussianBlur(rng.standard_normal(shape, np.float32), (0, 0), 3.0) * 6
-    albedo = paper * grain[..., None] * (1 - ink[..., None]) + np.asarray(INK_RGB) * ink[..., None]
-    levels = build_pyramid(encode_srgb8(albedo), texel_m)
+    reflectance = paper * grain * (1 - ink) + np.float32(INK_REFLECTANCE) * ink
+    levels = build_pyramid(reflectance.astype(np.float32), texel_m)
     return TagSheet(board.name, T, extent, texel_m, levels)
 
 
