@@ -2,7 +2,8 @@
 
 Sections: ``subject``, ``gait`` (:class:`gaitnet.sim.gait.GaitConfig`), ``camera`` and
 ``mount`` (:mod:`gaitnet.sim.rig`), ``imu`` (:class:`gaitnet.sim.imu.ImuConfig`), ``scene``,
-``sensor`` (:class:`gaitnet.sim.sensor_model.SensorNoiseConfig`) and ``output``. Every key
+``sensor`` (:class:`gaitnet.sim.sensor_model.SensorNoiseConfig`), ``timing``
+(:class:`gaitnet.sim.frame_timing.FrameTimingConfig`) and ``output``. Every key
 has a default, so an empty file is the default session. Each section checks its values' ranges
 in its ``__post_init__``; :class:`SimConfig` checks the few that depend on two sections. See
 docs/simulator.md for the table of keys and ranges.
@@ -14,6 +15,7 @@ from dataclasses import dataclass, field
 
 from gaitnet.checks import check_each, check_int_range, check_range
 from gaitnet.sim.floor import COARSEST_TEXEL_M, FLOOR_FAMILIES, MAX_TEXTURE_SIDE
+from gaitnet.sim.frame_timing import FrameTimingConfig
 from gaitnet.sim.gait import GaitConfig
 from gaitnet.sim.imu import ImuConfig
 from gaitnet.sim.rig import CameraConfig, MountConfig
@@ -116,6 +118,7 @@ class SimConfig:
     imu: ImuConfig = field(default_factory=ImuConfig)
     scene: SceneConfig = field(default_factory=SceneConfig)
     sensor: SensorNoiseConfig = field(default_factory=SensorNoiseConfig)
+    timing: FrameTimingConfig = field(default_factory=FrameTimingConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
 
     def __post_init__(self) -> None:

@@ -19,8 +19,10 @@ from gaitnet.io.atomic import atomic_save, atomic_write_text
 from gaitnet.io.images import encode_png
 from gaitnet.io.trajectory import write_tum
 from gaitnet.motion.skeleton import JOINT_NAMES, ROTATED_SMPL_INDICES, SMPL_JOINT_INDICES
+from gaitnet.sim.frame_timing import FrameTimes
 from gaitnet.sim.gait import Walk
-from gaitnet.sim.imu import ImuTruth
+from gaitnet.sim.imu import ImuCalibration, ImuTruth
+from gaitnet.sim.mount_dynamics import MountMotion
 from gaitnet.sim.scene import SIDES
 
 
@@ -70,29 +72,78 @@ class GroundTruthWriter:
         self._write_png(self.root / "labels" / f"{t_ns}.png", label)
         self._write_png(self.root / "instances" / f"{t_ns}.png", instance)
 
+    def write_rig(
+        self,
+        mount: MountMotion,
+        frames: FrameTimes,
+        imu: ImuTruth,
+        calibration: ImuCalibration,
+    ) -> None:
+        """The rig's motion on the pelvis, the IMU's sensor errors and the frame timing
+        (``mount_frames.tum``, ``mount_motion.npz``, ``imu_calibration.yaml``,
+        ``frame_times.csv``; docs/groundtruth.md)."""
+        root = self.root
+        write_tum(
+            root / "mount_frames.tum",
+            frames.stamp_ns * 1e-9,
+            mount.T_PfromC(frames.true_s),
+            "camera in the pelvis frame (T_PfromC) at frame times",
+        )
+        impact, wobble = mount.parts(imu.t_s)
+        _, tilt = mount.displacement(imu.t_s)
+        _save_npz(
+            root / "mount_motion.npz",
+            t_ns=imu.t_ns if imu.t_ns is not None else np.round(imu.t_s * 1e9).astype(np.int64),
+            t_true_s=imu.t_s,
+            impact_m=impact,
+            wobble_m=wobble,
+            tilt_rad=tilt,
+            T_PfromC_nominal=mount.T_PfromC_nominal,
+        )
+        cal = calibration.as_dict()
+        cal["dropped_frames"] = [int(i) for i in frames.dropped]
+        atomic_write_text(root / "imu_calibration.yaml", yaml.safe_dump(cal, sort_keys=False))
+        n = len(frames.index) + len(frames.dropped)
+        stamp = dict(zip(frames.index.tolist(), frames.stamp_ns.tolist(), strict=True))
+        true = dict(zip(frames.index.tolist(), frames.true_s.tolist(), strict=True))
+        rows = []
+        for k in range(n):
+            if k in stamp:
+                rows.append([k, stamp[k], true[k], False])
+            else:
+                rows.append([k, "", float("nan"), True])
+        atomic_write_text(
+            root / "frame_times.csv",
+            _csv(["frame", "t_ns", "true_exposure_mid_s", "dropped"], rows),
+        )
+
     def write_all(
         self,
         walk: Walk,
         times: np.ndarray,
         T_WfromC: np.ndarray,
-        T_PfromC: np.ndarray,
-        T_PfromI: np.ndarray,
+        T_CfromI: np.ndarray,
         imu: ImuTruth,
         marker_checks: list[tuple],
+        frame_t_ns: np.ndarray | None = None,
     ) -> None:
+        """Everything per frame is evaluated at the true exposure mid-times ``times`` and
+        keyed by the frames' timestamps ``frame_t_ns`` (default: ``times`` in ns)."""
         root = self.root
-        t_ns = np.round(times * 1e9).astype(np.int64)
+        t_ns = np.round(times * 1e9).astype(np.int64) if frame_t_ns is None else frame_t_ns
+        t_key = t_ns * 1e-9
         R_WP, p_P = walk.pelvis_pose(times)
         T_WP = make_T(R_WP, p_P)
-        T_IfromC = np.linalg.inv(T_PfromI) @ T_PfromC
-        write_tum(root / "camera_frames.tum", times, T_WfromC, "camera (colour) at frame times")
-        write_tum(root / "imu_frames.tum", times, T_WP @ T_PfromI, "IMU at frame times")
-        write_tum(root / "pelvis_frames.tum", times, T_WP, "pelvis (SMPL joint 0) at frame times")
+        T_IfromC = np.linalg.inv(T_CfromI)
+        write_tum(root / "camera_frames.tum", t_key, T_WfromC, "camera (colour) at frame times")
+        write_tum(root / "imu_frames.tum", t_key, T_WfromC @ T_CfromI, "IMU at frame times")
+        write_tum(root / "pelvis_frames.tum", t_key, T_WP, "pelvis (SMPL joint 0) at frame times")
         T_WI = make_T(imu.R_WfromI, imu.p_IinW)
-        write_tum(root / "imu_imurate.tum", imu.t_s, T_WI, "IMU at IMU sample times")
+        write_tum(root / "imu_imurate.tum", imu.t_s, T_WI, "IMU at true IMU sample times")
         write_tum(
-            root / "camera_imurate.tum", imu.t_s, T_WI @ T_IfromC, "camera at IMU sample times"
+            root / "camera_imurate.tum", imu.t_s, T_WI @ T_IfromC, "camera at true IMU times"
         )
+
 
         root_orient, trans, joint_aa = walk.smpl_pose(times)
         _save_npz(
@@ -185,7 +236,8 @@ class GroundTruthWriter:
         )
         _save_npz(
             root / "imu_truth.npz",
-            t_ns=np.round(imu.t_s * 1e9).astype(np.int64),
+            t_ns=imu.t_ns if imu.t_ns is not None else np.round(imu.t_s * 1e9).astype(np.int64),
+            t_true_s=imu.t_s,
             specific_force=imu.specific_force,
             angular_rate=imu.omega_I,
             gyro_bias=imu.gyro_bias,

@@ -2,12 +2,14 @@
 
 Measurement model (thesis eq. (3.2), world z up, ``g̃ = [0, 0, g]``)::
 
-    y_a = C(q) (a + g̃) + b_a + η_a        (specific force in the IMU frame)
-    y_g = ω_I + b_g + η_g                  (angular rate in the IMU frame)
+    y_a = Q(M_a C(q) (a + g̃) + b_a + η_a)        (specific force in the IMU frame)
+    y_g = Q(M_g ω_I + b_g + η_g)                  (angular rate in the IMU frame)
 
-with ``C(q) = R_IfromW``. The IMU is rigidly attached to the pelvis at ``T_PfromI``:
-``p_I = p_P + R_WP p_IinP``, ``ω_I = R_IP ω_P``, and
-``a_I = a_P + R_WP (α_P × p_IinP + ω_P × (ω_P × p_IinP))`` where ``α_P = dω_P/dt`` (pelvis
+with ``C(q) = R_IfromW``, ``M`` the session's scale / cross-axis errors and ``Q`` the
+quantisation (:class:`ImuCalibration`). The IMU is rigidly attached at ``T_BfromI`` to a body B
+(the camera, which moves on the pelvis: :mod:`gaitnet.sim.mount_dynamics`):
+``p_I = p_B + R_WB p_IinB``, ``ω_I = R_IB ω_B``, and
+``a_I = a_B + R_WB (α_B × p_IinB + ω_B × (ω_B × p_IinB))`` where ``α_B = dω_B/dt`` (body
 frame). Noise: white noise of density ``σ`` gives per-sample std ``σ √f``; the bias random walk
 of density ``σ_b`` adds ``σ_b √Δt · N(0, 1)`` per sample; each session starts with a constant
 bias drawn from ``N(0, initial_bias_std²)``.
@@ -16,7 +18,7 @@ bias drawn from ``N(0, initial_bias_std²)``.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -30,6 +32,8 @@ PelvisKinematics = Callable[
 
 DEG = np.pi / 180.0
 G_UG = 9.80665e-6  # one micro-g in m/s²
+ACCEL_LSB_4G = 8.0 * 9.80665 / 4096  # ±4 g over 12 bit: 1.95 mg
+GYRO_LSB_1000DPS = 2000.0 * DEG / 65536  # ±1000 °/s over 16 bit: 0.0305 °/s
 
 
 @dataclass(frozen=True)
@@ -45,6 +49,15 @@ class ImuConfig:
     ``gyro_bias_random_walk`` 0–0.01 rad/s²/√Hz; ``accel_bias_random_walk`` 0–0.1 m/s³/√Hz;
     ``gyro_initial_bias_std`` 0–0.2 rad/s; ``accel_initial_bias_std`` 0–1 m/s²;
     ``timestamp_jitter_s`` from 0 to a tenth of the sample period.
+
+    Sensor errors a filter must estimate (drawn once per session by
+    :func:`draw_imu_calibration`; docs/references.md, *Simulator realism: IMU and timing*):
+    per-axis scale factor errors uniform within ±``accel_scale_tol`` / ±``gyro_scale_tol``
+    (BMI055 sensitivity tolerance; 0–0.1) and cross-axis sensitivities (axis misalignment)
+    uniform within ±``accel_cross_axis_tol`` / ±``gyro_cross_axis_tol`` (0–0.1); outputs
+    quantised to ``accel_lsb_mps2`` (0–0.5 m/s²; default ±4 g at 12 bit) and ``gyro_lsb_rad_s``
+    (0–0.01 rad/s; default ±1000 °/s at 16 bit), 0 = not quantised. ``noise_free`` gives the
+    exact signals: no noise, bias, scale, misalignment or quantisation.
     """
 
     rate_hz: float = 200.0
@@ -56,6 +69,12 @@ class ImuConfig:
     gyro_initial_bias_std: float = 0.3 * DEG
     accel_initial_bias_std: float = 0.05
     timestamp_jitter_s: float = 2.0e-5
+    accel_scale_tol: float = 0.02
+    gyro_scale_tol: float = 0.01
+    accel_cross_axis_tol: float = 0.01
+    gyro_cross_axis_tol: float = 0.01
+    accel_lsb_mps2: float = ACCEL_LSB_4G
+    gyro_lsb_rad_s: float = GYRO_LSB_1000DPS
     noise_free: bool = False
 
     def __post_init__(self) -> None:
@@ -71,6 +90,11 @@ class ImuConfig:
         ):
             check_range(name, getattr(self, name), 0.0, hi)
         check_range("timestamp_jitter_s", self.timestamp_jitter_s, 0.0, 0.1 / self.rate_hz, " s")
+        for name in ("accel_scale_tol", "gyro_scale_tol", "accel_cross_axis_tol",
+                     "gyro_cross_axis_tol"):  # fmt: skip
+            check_range(name, getattr(self, name), 0.0, 0.1)
+        check_range("accel_lsb_mps2", self.accel_lsb_mps2, 0.0, 0.5, " m/s²")
+        check_range("gyro_lsb_rad_s", self.gyro_lsb_rad_s, 0.0, 0.01, " rad/s")
 
     def noise(self) -> ImuNoise:
         return ImuNoise(
@@ -82,8 +106,69 @@ class ImuConfig:
 
 
 @dataclass(frozen=True)
+class ImuCalibration:
+    """One session's sensor errors (truth for ``groundtruth/imu_calibration.yaml``).
+
+    Measured ``y_a = Q(M_a f + b_a + η_a)`` and ``y_g = Q(M_g ω + b_g + η_g)`` with ``M = I +
+    diag(scale) + cross-axis`` and ``Q`` rounding to the LSB; IMU timestamps are the true
+    sampling instants plus ``time_offset_s`` (the camera's clock is the reference).
+    """
+
+    accel_matrix: np.ndarray = field(default_factory=lambda: np.eye(3))
+    gyro_matrix: np.ndarray = field(default_factory=lambda: np.eye(3))
+    accel_lsb_mps2: float = 0.0
+    gyro_lsb_rad_s: float = 0.0
+    time_offset_s: float = 0.0
+
+    def as_dict(self) -> dict[str, object]:
+        return {
+            "accel_matrix": np.round(self.accel_matrix, 9).tolist(),
+            "accel_scale": np.round(np.diag(self.accel_matrix) - 1.0, 9).tolist(),
+            "gyro_matrix": np.round(self.gyro_matrix, 9).tolist(),
+            "gyro_scale": np.round(np.diag(self.gyro_matrix) - 1.0, 9).tolist(),
+            "accel_lsb_mps2": float(self.accel_lsb_mps2),
+            "gyro_lsb_rad_s": float(self.gyro_lsb_rad_s),
+            "imu_time_offset_s": round(float(self.time_offset_s), 12),
+        }
+
+
+def _error_matrix(scale_tol: float, cross_tol: float, rng: np.random.Generator) -> np.ndarray:
+    scale = rng.uniform(-1.0, 1.0, 3) * scale_tol
+    cross = rng.uniform(-1.0, 1.0, (3, 3)) * cross_tol
+    np.fill_diagonal(cross, 0.0)
+    return np.eye(3) + np.diag(scale) + cross
+
+
+def draw_imu_calibration(
+    cfg: ImuConfig, rng: np.random.Generator, time_offset_s: float = 0.0
+) -> ImuCalibration:
+    """The session's scale / misalignment errors (uniform within the tolerances) and LSBs;
+    ``rng`` is drawn from only when a tolerance is non-zero. Identity when ``noise_free``."""
+    if cfg.noise_free:
+        return ImuCalibration(time_offset_s=time_offset_s)
+    eye = np.eye(3)
+    accel = (
+        _error_matrix(cfg.accel_scale_tol, cfg.accel_cross_axis_tol, rng)
+        if cfg.accel_scale_tol > 0 or cfg.accel_cross_axis_tol > 0
+        else eye
+    )
+    gyro = (
+        _error_matrix(cfg.gyro_scale_tol, cfg.gyro_cross_axis_tol, rng)
+        if cfg.gyro_scale_tol > 0 or cfg.gyro_cross_axis_tol > 0
+        else eye
+    )
+    return ImuCalibration(accel, gyro, cfg.accel_lsb_mps2, cfg.gyro_lsb_rad_s, time_offset_s)
+
+
+def quantise(values: np.ndarray, lsb: float) -> np.ndarray:
+    """``values`` rounded to multiples of ``lsb`` (unchanged when ``lsb`` is 0)."""
+    return np.round(values / lsb) * lsb if lsb > 0 else values
+
+
+@dataclass(frozen=True)
 class ImuTruth:
-    """The exact IMU signals and biases at the sample times (for ground truth and tests)."""
+    """The exact IMU signals and biases at the true sample times ``t_s`` (for ground truth and
+    tests); ``t_ns`` are the samples' timestamps in ``imu.csv`` (``t_s`` + the time offset)."""
 
     t_s: np.ndarray
     R_WfromI: np.ndarray
@@ -93,6 +178,7 @@ class ImuTruth:
     omega_I: np.ndarray
     gyro_bias: np.ndarray
     accel_bias: np.ndarray
+    t_ns: np.ndarray | None = None
 
 
 def imu_sample_times(t0_s: float, t1_s: float, cfg: ImuConfig, rng: np.random.Generator):
@@ -105,17 +191,19 @@ def imu_sample_times(t0_s: float, t1_s: float, cfg: ImuConfig, rng: np.random.Ge
 
 
 def rig_imu_truth(
-    pelvis: PelvisKinematics, T_PfromI: np.ndarray, t_s: np.ndarray, gravity: float
+    body: PelvisKinematics, T_BfromI: np.ndarray, t_s: np.ndarray, gravity: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Exact IMU pose, velocity, specific force and angular rate at times ``t_s``.
+    """Exact IMU pose, velocity, specific force and angular rate at times ``t_s`` for an IMU
+    rigidly attached at ``T_BfromI`` to a body B moving as ``body`` (the pelvis, or the camera
+    when the mount moves: :func:`gaitnet.sim.mount_dynamics.compose_kinematics`).
 
-    ``α_P`` comes from a central difference of ``ω_P`` (step 1e-4 s; the pelvis motion is
-    smooth, so its error is ~1e-8 relative).
+    ``α_B`` comes from a central difference of ``ω_B`` (step 1e-4 s; the motion is smooth, so
+    its error is ~1e-8 relative).
     """
-    R_WP, p_P, v_P, a_P, w_P = pelvis(t_s)
+    R_WP, p_P, v_P, a_P, w_P = body(t_s)
     h = 1e-4
-    alpha_P = (pelvis(t_s + h)[4] - pelvis(t_s - h)[4]) / (2 * h)
-    R_PI, p_IinP = T_PfromI[:3, :3], T_PfromI[:3, 3]
+    alpha_P = (body(t_s + h)[4] - body(t_s - h)[4]) / (2 * h)
+    R_PI, p_IinP = T_BfromI[:3, :3], T_BfromI[:3, 3]
     R_WI = R_WP @ R_PI
     p_I = p_P + R_WP @ p_IinP
     lever_v = np.cross(w_P, p_IinP)
@@ -129,16 +217,24 @@ def rig_imu_truth(
 
 
 def simulate_imu(
-    pelvis: PelvisKinematics,
-    T_PfromI: np.ndarray,
+    body: PelvisKinematics,
+    T_BfromI: np.ndarray,
     t0_s: float,
     t1_s: float,
     cfg: ImuConfig,
     rng: np.random.Generator,
+    calibration: ImuCalibration | None = None,
 ) -> tuple[ImuSamples, ImuTruth]:
-    """Measured IMU stream over [t0, t1] and the exact signals behind it."""
+    """Measured IMU stream over [t0, t1] and the exact signals behind it.
+
+    ``body``/``T_BfromI``: see :func:`rig_imu_truth`. ``calibration``: the session's scale,
+    misalignment, quantisation and time offset (:func:`draw_imu_calibration`); None = ideal.
+    Samples whose timestamp would be negative (a negative offset at ``t0 = 0``) are left out.
+    """
+    cal = calibration if calibration is not None else ImuCalibration()
     t = imu_sample_times(t0_s, t1_s, cfg, rng)
-    R_WI, p_I, v_I, f_I, w_I = rig_imu_truth(pelvis, T_PfromI, t, cfg.gravity_mps2)
+    t = t[t + cal.time_offset_s >= 0.0]
+    R_WI, p_I, v_I, f_I, w_I = rig_imu_truth(body, T_BfromI, t, cfg.gravity_mps2)
     n = len(t)
     if cfg.noise_free:
         b_g = np.zeros((n, 3))
@@ -153,9 +249,19 @@ def simulate_imu(
             cfg.accel_bias_random_walk * np.sqrt(dt) * rng.standard_normal((n, 3)), axis=0
         )
         sq = np.sqrt(cfg.rate_hz)
-        gyro = w_I + b_g + cfg.gyro_noise_density * sq * rng.standard_normal((n, 3))
-        accel = f_I + b_a + cfg.accel_noise_density * sq * rng.standard_normal((n, 3))
-    t_ns = np.round(t * 1e9).astype(np.int64)
+        gyro = (
+            w_I @ cal.gyro_matrix.T
+            + b_g
+            + cfg.gyro_noise_density * sq * rng.standard_normal((n, 3))
+        )
+        accel = (
+            f_I @ cal.accel_matrix.T
+            + b_a
+            + cfg.accel_noise_density * sq * rng.standard_normal((n, 3))
+        )
+        gyro = quantise(gyro, cal.gyro_lsb_rad_s)
+        accel = quantise(accel, cal.accel_lsb_mps2)
+    t_ns = np.round((t + cal.time_offset_s) * 1e9).astype(np.int64)
     samples = ImuSamples(t_ns=t_ns, accel=accel, gyro=gyro)
     truth = ImuTruth(
         t_s=t,
@@ -166,5 +272,6 @@ def simulate_imu(
         omega_I=w_I,
         gyro_bias=b_g,
         accel_bias=b_a,
+        t_ns=t_ns,
     )
     return samples, truth

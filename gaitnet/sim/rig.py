@@ -66,6 +66,16 @@ class MountConfig:
     ``imu_in_camera_m`` / ``imu_rpy_deg``: the IMU origin in the camera frame (each coordinate
     within ±0.1 m: inside the camera housing) and the IMU-to-camera rotation (roll, pitch, yaw
     about the camera x, y, z axes, each within ±180°).
+
+    The rig's motion on its strap (:mod:`gaitnet.sim.mount_dynamics`; magnitudes in
+    docs/references.md, *Simulator realism: IMU and timing*): ``impact_peak_g`` (0–5 g; 0 =
+    off) the heel-strike shock's peak acceleration at the rig at 1.3 m/s (linear in speed),
+    ringing at ``impact_freq_hz`` (5–50 Hz) with damping ratio ``impact_damping_ratio``
+    (0.05–1); the strap wobble, a damped spring of natural frequency ``wobble_freq_hz``
+    (1–15 Hz) and damping ratio ``wobble_damping_ratio`` (0.02–1) driven by the pelvis
+    acceleration and the shocks, with compliance ``wobble_gain`` (0–1; 0 = rigid) and
+    ``wobble_tilt_deg_per_mm`` (0–3 °/mm) of rocking per millimetre of fore-aft / lateral
+    displacement.
     """
 
     pitch_deg: float | tuple[float, float] = 70.0
@@ -74,6 +84,13 @@ class MountConfig:
     offset_m: tuple[float, float, float] = (0.17, 0.0, 0.05)
     imu_in_camera_m: tuple[float, float, float] = (-0.0302, 0.0074, 0.0160)
     imu_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    impact_peak_g: float = 1.5
+    impact_freq_hz: float = 20.0
+    impact_damping_ratio: float = 0.3
+    wobble_freq_hz: float = 4.0
+    wobble_damping_ratio: float = 0.15
+    wobble_gain: float = 0.3
+    wobble_tilt_deg_per_mm: float = 0.5
 
     def __post_init__(self) -> None:
         lo, hi = PITCH_RANGE_DEG
@@ -94,6 +111,13 @@ class MountConfig:
             check_range(name, value, a, b, " m")
         check_each("imu_in_camera_m", self.imu_in_camera_m, -0.1, 0.1, " m")
         check_each("imu_rpy_deg", self.imu_rpy_deg, -180.0, 180.0, "°")
+        check_range("impact_peak_g", self.impact_peak_g, 0.0, 5.0, " g")
+        check_range("impact_freq_hz", self.impact_freq_hz, 5.0, 50.0, " Hz")
+        check_range("impact_damping_ratio", self.impact_damping_ratio, 0.05, 1.0)
+        check_range("wobble_freq_hz", self.wobble_freq_hz, 1.0, 15.0, " Hz")
+        check_range("wobble_damping_ratio", self.wobble_damping_ratio, 0.02, 1.0)
+        check_range("wobble_gain", self.wobble_gain, 0.0, 1.0)
+        check_range("wobble_tilt_deg_per_mm", self.wobble_tilt_deg_per_mm, 0.0, 3.0, " °/mm")
 
     @property
     def pitch_is_drawn(self) -> bool:

@@ -4,10 +4,12 @@ Used by both products of the simulator — whole sessions (:mod:`gaitnet.sim.ses
 single labelled frames (:mod:`gaitnet.sim.dataset`) — so every config key means the same in
 both. Order of work: sample the subject → generate the walk → build the room (floor family,
 tag sheets in front of the feet at the start and at the end, floor texture, walls, clutter,
-shoe colours) → sample the lighting and the exposure factor → fix the camera pitch.
+shoe colours) → sample the lighting and the exposure factor → fix the camera pitch → the
+rig's motion on its strap (:mod:`gaitnet.sim.mount_dynamics`).
 
 Randomness: one ``numpy.random.SeedSequence(seed)`` spawns independent streams
-(:data:`STREAMS`) for the subject, gait, room, lighting, IMU, sensor noise and camera mount, so
+(:data:`STREAMS`) for the subject, gait, room, lighting, IMU, sensor noise, camera mount, rig
+motion, IMU calibration errors and frame timing, so
 the same seed and config give the same world, and changing e.g. the IMU noise does not change
 the subject. A stream a config does not use is never drawn from (a fixed ``mount.pitch_deg``
 leaves the ``mount`` stream untouched).
@@ -26,6 +28,7 @@ from gaitnet.io.types import AprilTagBoard
 from gaitnet.sim.config import SimConfig
 from gaitnet.sim.floor import FLOOR_FAMILIES, Clutter, FloorTexture, make_clutter, make_floor
 from gaitnet.sim.gait import Walk, generate_walk
+from gaitnet.sim.mount_dynamics import MountMotion, build_mount_motion, compose_kinematics
 from gaitnet.sim.render import render_frame
 from gaitnet.sim.render_color import srgb_to_linear
 from gaitnet.sim.render_types import Lighting, RenderResult
@@ -47,7 +50,18 @@ __all__ = [
     "sample_lighting",
 ]
 
-STREAMS = ("subject", "gait", "room", "lighting", "imu", "sensor", "mount")
+STREAMS = (
+    "subject",
+    "gait",
+    "room",
+    "lighting",
+    "imu",
+    "sensor",
+    "mount",
+    "rig_motion",  # heel-strike shock amplitudes (mount_dynamics)
+    "imu_calibration",  # IMU scale / misalignment errors and time offset
+    "frame_timing",  # frame timestamp jitter and dropped frames
+)
 SEED_LIMIT = 2**32  # seeds are 0 ≤ seed < 2**32 (the command line promises 32 bits)
 ROOM_HEIGHT_M = 2.8
 
@@ -162,15 +176,24 @@ class SimScene:
     light: Lighting
     exposure_gain: float
     mount: MountConfig
+    mount_motion: MountMotion
 
     @property
     def pitch_deg(self) -> float:
         return float(self.mount.pitch_deg)  # type: ignore[arg-type]
 
     def T_WfromC(self, t_s: np.ndarray) -> np.ndarray:
-        """Camera poses (n, 4, 4) at times ``t_s`` (n,)."""
-        R_WP, p_P = self.walk.pelvis_pose(np.asarray(t_s, dtype=np.float64))
-        return np.einsum("nij,jk->nik", make_T(R_WP, p_P), self.mount.T_PfromC())
+        """Camera poses (n, 4, 4) at times ``t_s`` (n,): the pelvis pose times the mount's
+        moving camera-in-pelvis pose (heel-strike shocks and strap wobble, ``mount_motion``)."""
+        t = np.asarray(t_s, dtype=np.float64)
+        R_WP, p_P = self.walk.pelvis_pose(t)
+        return make_T(R_WP, p_P) @ self.mount_motion.T_PfromC(t)
+
+    def camera_kinematics(self, t_s: np.ndarray) -> tuple[np.ndarray, ...]:
+        """``(R_WfromC, p_CinW, v, a, ω_C)`` at times ``t_s``: what the IMU on the camera
+        feels (:func:`gaitnet.sim.mount_dynamics.compose_kinematics`)."""
+        kin = compose_kinematics(self.walk.pelvis_kinematics, self.mount_motion.kinematics)
+        return kin(t_s)
 
     def render(self, camera: CameraConfig, t_s: float, T_WfromC: np.ndarray) -> RenderResult:
         """The noise-free view of ``camera`` at pose ``T_WfromC`` and time ``t_s``."""
@@ -223,6 +246,7 @@ def build_scene(cfg: SimConfig, rngs: dict[str, np.random.Generator]) -> SimScen
     light = sample_lighting(light_rng, cfg.scene.lighting_variation)
     exposure_gain = float(light_rng.uniform(*cfg.scene.exposure_range))
     mount = cfg.mount.with_pitch(rngs["mount"])
+    mount_motion = build_mount_motion(walk, mount, mount.T_PfromC(), rngs["rig_motion"])
     return SimScene(
         subject=subject,
         walk=walk,
@@ -234,4 +258,5 @@ def build_scene(cfg: SimConfig, rngs: dict[str, np.random.Generator]) -> SimScen
         light=light,
         exposure_gain=exposure_gain,
         mount=mount,
+        mount_motion=mount_motion,
     )

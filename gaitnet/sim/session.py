@@ -28,9 +28,10 @@ from gaitnet.io.contact_sheet import colourise_depth, colourise_labels, contact_
 from gaitnet.io.session_folder import SessionWriter
 from gaitnet.io.types import SessionCalibration
 from gaitnet.sim.config import SimConfig
+from gaitnet.sim.frame_timing import make_frame_times
 from gaitnet.sim.gait import Walk
 from gaitnet.sim.groundtruth import GroundTruthWriter
-from gaitnet.sim.imu import simulate_imu
+from gaitnet.sim.imu import draw_imu_calibration, simulate_imu
 from gaitnet.sim.scene import SIDES
 from gaitnet.sim.scene_setup import build_scene, check_seed, rng_streams
 from gaitnet.sim.sensor_model import apply_sensor, auto_exposure
@@ -52,15 +53,6 @@ class SimulationResult:
     subject: Subject
     floor_family: str
     marker_checks: dict[str, float]
-
-
-FRAME_MARGIN_S = 0.05  # frames start/end this far inside the IMU stream, as on a real device
-
-
-def frame_times(duration_s: float, fps: float) -> np.ndarray:
-    """Camera timestamps [s] on the nominal grid, inside the IMU's span by a small margin."""
-    n = int(np.floor((duration_s - 2 * FRAME_MARGIN_S) * fps)) + 1
-    return FRAME_MARGIN_S + np.arange(n) / fps
 
 
 def preview_frames(times: np.ndarray, cfg: SimConfig) -> set[int]:
@@ -127,9 +119,7 @@ def simulate_session(
 
     cam = cfg.camera
     K = cam.intrinsics().K
-    T_PfromC = scene.mount.T_PfromC()
     T_CfromI = cfg.mount.T_CfromI()
-    T_PfromI = T_PfromC @ T_CfromI
     extra: dict[str, object] = {"simulator_seed": seed, "floor_family": family}
     if cfg.mount.pitch_is_drawn:
         extra["mount_pitch_deg"] = round(scene.pitch_deg, 6)
@@ -145,11 +135,17 @@ def simulate_session(
         extra=extra,
     )
 
-    times = frame_times(walk.duration_s, cam.fps)
-    t_ns = np.round(times * 1e9).astype(np.int64)
-    imu, imu_truth = simulate_imu(
-        walk.pelvis_kinematics, T_PfromI, 0.0, walk.duration_s, cfg.imu, rngs["imu"]
+    # Frame times: true exposure mid-times (render, ground truth) and timestamps (file names).
+    frames = make_frame_times(walk.duration_s, cam.fps, cfg.timing, rngs["frame_timing"])
+    times, t_ns = frames.true_s, frames.stamp_ns
+    calib_rng = rngs["imu_calibration"]
+    imu_calibration = draw_imu_calibration(
+        cfg.imu, calib_rng, cfg.timing.draw_imu_time_offset(calib_rng)
     )
+    imu, imu_truth = simulate_imu(
+        scene.camera_kinematics, T_CfromI, 0.0, walk.duration_s, cfg.imu, rngs["imu"],
+        imu_calibration,
+    )  # fmt: skip
     T_WfromC_all = scene.T_WfromC(times)
 
     sensor_rng = rngs["sensor"]
@@ -190,7 +186,8 @@ def simulate_session(
                 preview_rows.append([rgb, colourise_depth(depth), colourise_labels(result.label)])
                 captions.append(f"t = {times[k]:.2f} s")
         writer.set_imu(imu)
-        gt.write_all(walk, times, T_WfromC_all, T_PfromC, T_PfromI, imu_truth, checks)
+        gt.write_all(walk, times, T_WfromC_all, T_CfromI, imu_truth, checks, t_ns)
+        gt.write_rig(scene.mount_motion, frames, imu_truth, imu_calibration)
         resolved = config_text if config_text is not None else dump_config(cfg)
         atomic_write_text(
             writer.staging / "sim_config.yaml",
