@@ -28,6 +28,9 @@ from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
+import realism_depth  # noqa: E402
+import realism_gait  # noqa: E402
+import realism_imu  # noqa: E402
 
 from gaitnet.config import load_config  # noqa: E402
 from gaitnet.geometry import backproject  # noqa: E402
@@ -175,6 +178,9 @@ def main() -> None:
     args = parser.parse_args()
     out = Path(args.out)
     slip_and_imu(args.walks, args.seed)
+    realism_gait.report(realism_gait.measure(seed=args.seed))  # gait values vs speed
+    realism_depth.report(realism_depth.measure())  # depth error vs distance, plane fit
+    realism_imu.main(seeds=2)  # shocks, wobble, IMU errors, frame timing, strapdown
 
     cfg = load_config(SimConfig, ROOT / "configs" / "sim" / "default.yaml")
     start = time.perf_counter()

@@ -108,7 +108,8 @@ class SyntheticWalksConfig:
     ``walk_length_range_m``; with probability ``turn_probability`` the path turns by an angle
     uniform in ``turn_range_deg`` (random sign); step-to-step variability (step length / time
     coefficients of variation, step-width spread) uniform in the ``*_range`` values; pelvis
-    amplitudes, toe-out and stance timing are varied around the simulator's defaults; the
+    amplitudes, toe-out and heel-off timing are varied around the simulator's defaults (the
+    stance share follows the speed and the subject's gait style); the
     sampling rate is drawn from ``mocap_rates_hz``.
     """
 
@@ -213,7 +214,7 @@ def sample_gait_config(
     turn = 0.0
     if rng.uniform() < cfg.turn_probability:
         turn = float(rng.uniform(*cfg.turn_range_deg)) * float(rng.choice([-1.0, 1.0]))
-    stance = float(rng.uniform(0.58, 0.64))
+    rng.uniform(0.58, 0.64)  # was the stance fraction: now the speed law's (kept: same draws)
     heel_off = float(rng.uniform(0.34, 0.42))
     values: dict[str, float] = {
         "speed_mps": _uniform_in_bands(rng, speed_bands),
@@ -233,9 +234,8 @@ def sample_gait_config(
         "pelvis_obliquity_deg": float(rng.uniform(3.0, 5.0)),
         "pelvis_tilt_deg": float(rng.uniform(1.0, 3.0)),
         "toe_clearance_m": float(rng.uniform(0.01, 0.02)),
-        "heel_strike_pitch_deg": float(rng.uniform(14.0, 22.0)),
+        "heel_strike_pitch_deg": float(rng.uniform(10.0, 15.0)),
         "toe_off_pitch_deg": float(rng.uniform(30.0, 40.0)),
-        "stance_fraction": stance,
         "heel_off_fraction": heel_off,
         "min_heel_off_fraction": 0.30,
     }

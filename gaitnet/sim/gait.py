@@ -40,126 +40,44 @@ heel rises when the leg is straight.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from gaitnet.checks import check_range
 from gaitnet.motion.skeleton import LowerBodySkeleton
-from gaitnet.sim.gait_feet import FootTrajectory, adapt_heel_off, build_foot_trajectory
+from gaitnet.sim.gait_config import GaitConfig
+from gaitnet.sim.gait_feet import (
+    FootTrajectory,
+)
+from gaitnet.sim.gait_fit import REACH_FRACTION, fit_feet_and_height
 from gaitnet.sim.gait_legs import R_PfromSMPL, leg_chain, smpl_pose_from_chain
 from gaitnet.sim.gait_pelvis import (
-    PelvisGrid,
     PelvisParams,
     PelvisTrajectory,
-    StanceKnee,
     build_pelvis,
-    design_heights,
-    fit_height,
     motion_end_time,
     pelvis_grid,
-    reach_bounds,
-    stance_knee,
 )
 from gaitnet.sim.gait_plan import FootStance, StepPlan, WalkPath, plan_steps
+from gaitnet.sim.gait_style import REFERENCE_SPEED_MPS, SpeedLaws, sample_sway, speed_laws
 from gaitnet.sim.scene import SIDES, BodyState, LegSegment, ShoeState, Side
 from gaitnet.sim.subject import Subject
 
 __all__ = [
+    "REACH_FRACTION",
     "FootEvents",
     "GaitConfig",
     "ShoeTrajectory",
     "StepEvents",
     "Walk",
     "generate_walk",
+    "walk_laws",
 ]
 
 DEG = np.pi / 180.0
-REFERENCE_SPEED_MPS = 1.3
-REACH_FRACTION = 0.99995  # hip–ankle distance ≤ this × (thigh + shank): knee ≥ about 1°
-_HEEL_RISE_MARGIN_M = 0.003  # the heel rises while the leg is still this far from the limit
-_MAX_TO_PITCH_DEG = 50.0
-_TERMINAL_SWING_KNEE_DEG = 15.0  # designed knee when the landing leg starts to count
-_TRAILING_KNEE_DEG = 6.0  # ... and when the stance leg stops counting
 _HEIGHT_FIT_S = 0.05  # smoothing scale of the pelvis height at up to REFERENCE_SPEED_MPS
-
-
-@dataclass(frozen=True)
-class GaitConfig:
-    """How the subject walks. Amplitudes are half of the peak-to-peak excursion.
-
-    The pelvis vertical excursion is not a parameter: it follows from the legs, whose stance
-    knee is designed by ``knee_extended_deg`` (heel strike, mid-stance, standing) and
-    ``knee_loading_deg`` (loading-response peak). Valid ranges: ``__post_init__`` (the key
-    table of docs/simulator.md lists them).
-    """
-
-    speed_mps: float = 1.2
-    walk_length_m: float = 5.0
-    step_width_m: float = 0.10
-    step_length_cv: float = 0.03
-    step_time_cv: float = 0.03
-    step_width_std_m: float = 0.01
-    stand_start_s: float = 1.5
-    stand_end_s: float = 1.5
-    turn_deg: float = 0.0
-    pelvis_lateral_m: float = 0.02
-    pelvis_rotation_deg: float = 4.0
-    pelvis_obliquity_deg: float = 4.0
-    pelvis_tilt_deg: float = 2.0
-    toe_clearance_m: float = 0.015
-    heel_strike_pitch_deg: float = 18.0
-    toe_off_pitch_deg: float = 35.0
-    toe_out_deg: float = 5.0
-    stance_fraction: float = 0.6
-    knee_extended_deg: float = 3.0
-    knee_loading_deg: float = 17.0
-    foot_flat_fraction: float = 0.09
-    heel_off_fraction: float = 0.38
-    min_heel_off_fraction: float = 0.30
-    step_length_height_ratio: float = 0.40
-    step_length_speed_exponent: float = 0.5
-    first_foot: str = "random"
-
-    def __post_init__(self) -> None:
-        check_range("speed_mps", self.speed_mps, 0.6, 1.7)
-        check_range("walk_length_m", self.walk_length_m, 3.0, 100.0)
-        check_range("step_width_m", self.step_width_m, 0.0, 0.3)
-        check_range("stand_start_s", self.stand_start_s, 1.0, 60.0)
-        check_range("stand_end_s", self.stand_end_s, 1.0, 60.0)
-        check_range("turn_deg", self.turn_deg, -360.0, 360.0)
-        check_range("toe_clearance_m", self.toe_clearance_m, 0.005, 0.05)
-        check_range("stance_fraction", self.stance_fraction, 0.55, 0.7)
-        check_range("knee_extended_deg", self.knee_extended_deg, 2.0, 10.0)
-        check_range("knee_loading_deg", self.knee_loading_deg, self.knee_extended_deg, 30.0)
-        check_range("foot_flat_fraction", self.foot_flat_fraction, 0.02, 0.15)
-        check_range("heel_off_fraction", self.heel_off_fraction, 0.2, self.stance_fraction - 0.1)
-        check_range(
-            "min_heel_off_fraction",
-            self.min_heel_off_fraction,
-            self.foot_flat_fraction + 0.05,
-            self.heel_off_fraction,
-        )
-        for name in ("step_length_cv", "step_time_cv", "step_width_std_m"):
-            check_range(name, getattr(self, name), 0.0, 0.1)
-        check_range("pelvis_lateral_m", self.pelvis_lateral_m, 0.0, 0.06)
-        for name in ("pelvis_rotation_deg", "pelvis_obliquity_deg"):
-            check_range(name, getattr(self, name), 0.0, 15.0)
-        check_range("pelvis_tilt_deg", self.pelvis_tilt_deg, 0.0, 10.0)
-        check_range("heel_strike_pitch_deg", self.heel_strike_pitch_deg, 5.0, 30.0)
-        check_range("toe_off_pitch_deg", self.toe_off_pitch_deg, 15.0, _MAX_TO_PITCH_DEG)
-        check_range("toe_out_deg", self.toe_out_deg, -10.0, 25.0)
-        check_range("step_length_height_ratio", self.step_length_height_ratio, 0.3, 0.5)
-        check_range("step_length_speed_exponent", self.step_length_speed_exponent, 0.0, 1.0)
-        if self.first_foot not in ("left", "right", "random"):
-            raise ValueError(f"first_foot must be left, right or random, got {self.first_foot!r}")
-
-    def preferred_step_m(self, height_m: float) -> float:
-        """Steady step length for a subject of ``height_m`` at this speed."""
-        ratio = self.speed_mps / REFERENCE_SPEED_MPS
-        return self.step_length_height_ratio * height_m * ratio**self.step_length_speed_exponent
 
 
 class ShoeTrajectory(NamedTuple):
@@ -216,6 +134,7 @@ class Walk:
         feet: tuple[FootTrajectory, FootTrajectory],
         pelvis: PelvisTrajectory,
         duration_s: float,
+        laws: SpeedLaws,
     ) -> None:
         self.subject = subject
         self.config = config
@@ -225,6 +144,8 @@ class Walk:
         self._feet = feet
         self._pelvis = pelvis
         self.duration_s = float(duration_s)
+        #: the speed- and subject-dependent values this walk was made with
+        self.laws = laws
         self._ankle_S = subject.ankle_in_shoe()
         J = self.skeleton.rest_joints
         #: SMPL foot joints (ball of the foot) as fixed points of the shoe frames (left, right).
@@ -374,12 +295,40 @@ def _step_events(plan: StepPlan) -> StepEvents:
     )
 
 
-def generate_walk(subject: Subject, cfg: GaitConfig, rng: np.random.Generator) -> Walk:
-    """Generate one walk (deterministic given ``rng``'s state)."""
-    pp = PelvisParams(
-        lateral_m=cfg.pelvis_lateral_m,
+def walk_laws(subject: Subject, cfg: GaitConfig) -> SpeedLaws:
+    """The speed- and subject-dependent values of a walk (:mod:`gaitnet.sim.gait_style`)."""
+    return speed_laws(
+        speed_mps=cfg.speed_mps,
+        height_m=subject.height_m,
+        style=subject.gait_style,
+        variability=cfg.variability,
+        stance_fraction=cfg.stance_fraction,
+        step_ratio=cfg.step_length_height_ratio,
+        step_exponent=cfg.step_length_speed_exponent,
         rotation_rad=cfg.pelvis_rotation_deg * DEG,
         obliquity_rad=cfg.pelvis_obliquity_deg * DEG,
+        lateral_m=cfg.pelvis_lateral_m,
+        stand_width_m=cfg.stand_width_m,
+        shoe_width_m=subject.shoe_width_m,
+    )
+
+
+def generate_walk(
+    subject: Subject,
+    cfg: GaitConfig,
+    rng: np.random.Generator,
+    sway_rng: np.random.Generator | None = None,
+) -> Walk:
+    """Generate one walk (deterministic given the generators' states).
+
+    ``rng`` draws the footsteps, ``sway_rng`` the postural sway while standing (None: drawn
+    from ``rng`` after the footsteps).
+    """
+    laws = walk_laws(subject, cfg)
+    pp = PelvisParams(
+        lateral_m=laws.lateral_m,
+        rotation_rad=laws.rotation_rad,
+        obliquity_rad=laws.obliquity_rad,
         tilt_rad=cfg.pelvis_tilt_deg * DEG,
         # longer, faster steps vault higher: smooth the height more
         height_fit_s=_HEIGHT_FIT_S * max(1.0, cfg.speed_mps / REFERENCE_SPEED_MPS) ** 1.3,
@@ -387,20 +336,23 @@ def generate_walk(subject: Subject, cfg: GaitConfig, rng: np.random.Generator) -
     settle = 2.0 * pp.height_hold_s  # the height is held still this long around standing
     t_go = cfg.stand_start_s + settle
     path = WalkPath(cfg.walk_length_m, cfg.turn_deg * DEG)
-    plan = _plan(path, subject, cfg, rng, t_first_heel_off=t_go + pp.progression_smooth_s)
+    plan = _plan(path, laws, cfg, rng, t_first_heel_off=t_go + pp.progression_smooth_s)
+    sway = sample_sway(rng if sway_rng is None else sway_rng, cfg.sway_ap_rms_m, cfg.sway_ml_rms_m)
     t_stop = motion_end_time(plan, pp)
     duration = t_stop + settle + cfg.stand_end_s
     ankle_S = subject.ankle_in_shoe()
-    grid = pelvis_grid(plan, path, pp, t_go=t_go, t_end=duration, ankle_x=float(ankle_S[0]))
+    grid = pelvis_grid(
+        plan, path, pp, t_go=t_go, t_end=duration, ankle_x=float(ankle_S[0]), sway=sway
+    )
     still = (cfg.stand_start_s, t_stop + settle)
-    plan, feet, z_fit, bounds = _fit_feet_and_height(plan, grid, subject, cfg, pp, still)
+    plan, feet, z_fit, bounds = fit_feet_and_height(plan, grid, subject, cfg, pp, still)
     pelvis = build_pelvis(grid, z_fit, bounds)
-    return Walk(subject, cfg, plan, path, feet, pelvis, duration)
+    return Walk(subject, cfg, plan, path, feet, pelvis, duration, laws)
 
 
 def _plan(
     path: WalkPath,
-    subject: Subject,
+    laws: SpeedLaws,
     cfg: GaitConfig,
     rng: np.random.Generator,
     t_first_heel_off: float,
@@ -409,110 +361,18 @@ def _plan(
     first_side = int(rng.integers(2)) if first == "random" else (0 if first == "left" else 1)
     return plan_steps(
         path,
-        step_m=cfg.preferred_step_m(subject.height_m),
+        step_m=laws.step_m,
         speed_mps=cfg.speed_mps,
         step_width_m=cfg.step_width_m,
+        stand_width_m=laws.stand_width_m,
         step_length_cv=cfg.step_length_cv,
         step_time_cv=cfg.step_time_cv,
         step_width_std_m=cfg.step_width_std_m,
         toe_out_rad=cfg.toe_out_deg * DEG,
         hs_pitch_rad=cfg.heel_strike_pitch_deg * DEG,
         to_pitch_rad=cfg.toe_off_pitch_deg * DEG,
-        timing=(cfg.stance_fraction, cfg.foot_flat_fraction, cfg.heel_off_fraction),
+        timing=(laws.stance_fraction, cfg.foot_flat_fraction, cfg.heel_off_fraction),
         t_first_heel_off=t_first_heel_off,
         first_side=first_side,
         rng=rng,
     )
-
-
-def _fit_feet_and_height(
-    plan: StepPlan,
-    grid: PelvisGrid,
-    subject: Subject,
-    cfg: GaitConfig,
-    pp: PelvisParams,
-    still: tuple[float, float],
-) -> tuple[StepPlan, tuple[FootTrajectory, FootTrajectory], np.ndarray, np.ndarray]:
-    """Heel-off times and the pelvis height, fitted to each other (two rounds).
-
-    The desired height follows the designed stance-knee flexion (:func:`stance_knee`); each
-    heel off moves earlier where that leg, once it no longer carries the body, could not reach
-    the desired height; the height is fitted again to the new feet, the last time constrained
-    to the reach bounds. Returns the final plan, feet, fitted height and per-leg reach bounds.
-    """
-    ankle_S = subject.ankle_in_shoe()
-    skel = subject.skeleton()
-    J = skel.rest_joints
-    hips_in_P = (R_PfromSMPL @ (J[1:3] - J[0]).T).T
-    thigh, shank = np.asarray(skel.thigh_lengths), np.asarray(skel.shank_lengths)
-    reach = REACH_FRACTION * subject.leg_length_m
-    design = StanceKnee(
-        cfg.knee_extended_deg * DEG,
-        cfg.knee_loading_deg * DEG,
-        _TERMINAL_SWING_KNEE_DEG * DEG,
-        _TRAILING_KNEE_DEG * DEG,
-    )
-    knee, weight = stance_knee(plan, grid.t, design)
-    earliest = (cfg.heel_off_fraction - cfg.min_heel_off_fraction) / (
-        cfg.heel_off_fraction - cfg.foot_flat_fraction
-    )
-
-    def fit(feet: tuple[FootTrajectory, FootTrajectory], final: bool) -> tuple[np.ndarray, ...]:
-        ankles = _ankles(feet, grid.t, ankle_S)
-        bounds = reach_bounds(grid, ankles, hips_in_P, reach)
-        targets = design_heights(grid, ankles, hips_in_P, knee, thigh, shank)
-        upper = np.min(bounds, axis=1)
-        z, desired = fit_height(grid, targets, weight, upper, pp, still, constrained=final)
-        return z, desired, bounds
-
-    planned = plan.stances
-    feet = _build_feet(plan, subject, cfg)
-    _, desired, _ = fit(feet, final=False)
-    for final in (False, True):
-        hips = grid.hips(desired, hips_in_P)
-        left, right = (
-            adapt_heel_off(
-                planned[i],
-                grid.t,
-                hips[:, i],
-                reach - _HEEL_RISE_MARGIN_M,
-                subject.shoe_length_m,
-                ankle_S,
-                _MAX_TO_PITCH_DEG * DEG,
-                plan.t_first_move,
-                earliest,
-                checked=np.isnan(knee[:, i]),
-            )
-            for i in (0, 1)
-        )
-        plan = replace(plan, stances=(left, right))
-        feet = _build_feet(plan, subject, cfg)
-        z_fit, desired, bounds = fit(feet, final)
-    return plan, feet, z_fit, bounds
-
-
-def _build_feet(
-    plan: StepPlan, subject: Subject, cfg: GaitConfig
-) -> tuple[FootTrajectory, FootTrajectory]:
-    left, right = (
-        build_foot_trajectory(
-            plan.stances[i],
-            plan.stances[1 - i],
-            subject.shoe_length_m,
-            subject.shoe_width_m,
-            cfg.toe_clearance_m,
-        )
-        for i in (0, 1)
-    )
-    return left, right
-
-
-def _ankles(
-    feet: tuple[FootTrajectory, FootTrajectory], t: np.ndarray, ankle_S: np.ndarray
-) -> np.ndarray:
-    """Both ankle joints (n, 2, 3) at times ``t``."""
-    out = []
-    for f in feet:
-        R, p = f.pose(t)
-        out.append(p + R @ ankle_S)
-    return np.stack(out, axis=1)

@@ -26,6 +26,7 @@ join foot flat with C² continuity.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -33,13 +34,18 @@ import numpy as np
 from gaitnet.sim.gait_plan import FootStance
 
 __all__ = [
+    "N_COEFFS",
     "FootTrajectory",
+    "PitchTarget",
     "adapt_heel_off",
     "build_foot_trajectory",
     "required_heel_rise",
+    "shoe_pose",
 ]
 
 FLAT, HEEL, TOE, SWING = 0, 1, 2, 3
+#: ``(u, t, R_WfromShoe, p_SoleCentre_W)`` of a swing → the toe-up pitch [rad] it should have
+PitchTarget = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 _G_A, _G_B = 1.2, 0.6
 _G_D0 = _G_A - 3.0  # g'(0)
 _H_D1 = 2.0  # h'(1)
@@ -60,20 +66,26 @@ def _bump(u: np.ndarray) -> np.ndarray:
     return 64.0 * u**3 * (1.0 - u) ** 3
 
 
-_BUMP_COEFFS = np.array([0.0, 0.0, 0.0, 64.0, -192.0, 192.0, -64.0])
+N_COEFFS = 10  # swing polynomials up to degree 9 (quintic + bumps + pitch correction)
+_BUMP_COEFFS = np.pad([0.0, 0.0, 0.0, 64.0, -192.0, 192.0, -64.0], (0, N_COEFFS - 7))
+_PITCH_BASIS = 4  # u³(1 − u)³ u^j, j < this: the swing pitch correction (zero, C² at both ends)
+_Z_ONLY = np.array([0.0, 0.0, 0.0, 1.0, 1.0])[:, None]  # the vertical bump lifts z_h and z_t
+_MAX_LIFT = 1.5  # a steered swing lifted more than this × clearance in mid-swing stays plain
+_PITCH_FIT = (0.0, 1.0)  # swing fractions where the pitch is fitted to its target
 
 
 def _quintic_coeffs(p0: np.ndarray, v0: np.ndarray, a0: np.ndarray, p1, v1, a1) -> np.ndarray:
-    """Coefficients ``(..., 7)`` (powers 0..6) of the quintic Hermite on u ∈ [0, 1]."""
+    """Coefficients ``(..., N_COEFFS)`` (powers 0..) of the quintic Hermite on u ∈ [0, 1]."""
     d = p1 - p0
     c3 = 10 * d - 6 * v0 - 4 * v1 - 1.5 * a0 + 0.5 * a1
     c4 = -15 * d + 8 * v0 + 7 * v1 + 1.5 * a0 - a1
     c5 = 6 * d - 3 * (v0 + v1) - 0.5 * a0 + 0.5 * a1
-    return np.stack([p0, v0, 0.5 * a0, c3, c4, c5, np.zeros_like(p0)], axis=-1)
+    zero = np.zeros_like(p0)
+    return np.stack([p0, v0, 0.5 * a0, c3, c4, c5, *([zero] * (N_COEFFS - 6))], axis=-1)
 
 
 def _polyval(c: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """Evaluate coefficients ``(..., 7)`` at ``u`` (broadcast over the leading axes)."""
+    """Evaluate coefficients ``(..., N_COEFFS)`` at ``u`` (broadcast over the leading axes)."""
     out = np.zeros(np.broadcast_shapes(c.shape[:-1], u.shape))
     for k in range(c.shape[-1] - 1, -1, -1):
         out = out * u + c[..., k]
@@ -113,9 +125,21 @@ def _heel_strike_state(st: FootStance, L: float, dur: float) -> np.ndarray:
 
 
 def _swing_coeffs(
-    a: FootStance, b: FootStance, other_xy: np.ndarray, L: float, W: float, clearance: float
+    a: FootStance,
+    b: FootStance,
+    other_xy: np.ndarray,
+    L: float,
+    W: float,
+    clearance: float,
+    pitch_target: PitchTarget | None = None,
 ) -> np.ndarray:
-    """Polynomial coefficients (5 channels, 7) of the swing from stance ``a`` to ``b``."""
+    """Polynomial coefficients (5 channels, N_COEFFS) of the swing from stance ``a`` to ``b``.
+
+    ``pitch_target(u, t, R_shoe, p_sole)`` → toe-up pitch (k,): where given, the pitch is
+    corrected toward it (:func:`_pitch_correction`) before the clearance bump is sized;
+    a steered swing whose toe would dip near the ends so much that the bump lifts it more than
+    ``_MAX_LIFT`` × clearance in mid-swing (short first / closing swings) stays plain.
+    """
     dur = b.t_hs - a.t_to
     s0 = _toe_off_state(a, L, a.t_to - a.t_ho)
     s1 = _heel_strike_state(b, L, b.t_ff - b.t_hs)
@@ -123,8 +147,40 @@ def _swing_coeffs(
     s0, s1 = s0 * scale, s1 * scale
     c = _quintic_coeffs(s0[:, 0], s0[:, 1], s0[:, 2], s1[:, 0], s1[:, 1], s1[:, 2])
     c[:2] += np.outer(_lateral_bulge(c, other_xy, W), _BUMP_COEFFS)
-    c[3:] += _vertical_bump(c, clearance) * _BUMP_COEFFS
-    return c
+    plain = c + _vertical_bump(c, clearance) * _BUMP_COEFFS * _Z_ONLY
+    if pitch_target is None:
+        return plain
+    u = np.linspace(0.0, 1.0, 41)
+    target = pitch_target(u, a.t_to + u * dur, *_channel_pose(c, u, L))
+    delta = _pitch_correction(c, L, u, target)  # the shoe turns about its sole centre
+    c[3] -= 0.5 * delta
+    c[4] += 0.5 * delta
+    steered = c + _vertical_bump(c, clearance) * _BUMP_COEFFS * _Z_ONLY
+    mid = u[(u >= _MID_SWING[0]) & (u <= _MID_SWING[1])]
+    lowest = np.minimum(_polyval(steered[3], mid), _polyval(steered[4], mid)).min()
+    if lowest > _MAX_LIFT * clearance:
+        return plain  # the steered toe would dip near toe off / heel strike: plain swing
+    return steered
+
+
+def _channel_pose(c: np.ndarray, u: np.ndarray, L: float) -> tuple[np.ndarray, np.ndarray]:
+    """Shoe poses ``R (k, 3, 3)``, ``p (k, 3)`` of swing coefficients ``c`` at fractions ``u``."""
+    poly = _polyval(c, u[:, None])
+    return shoe_pose(poly[:, :2], poly[:, 2], poly[:, 3], poly[:, 4], L)
+
+
+def _pitch_correction(c: np.ndarray, L: float, u: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Coefficients (N_COEFFS,) of ``Δ(z_t − z_h)``: a sum of ``u³(1 − u)³ u^j`` fitted (least
+    squares over :data:`_PITCH_FIT`) so that the pitch follows ``target`` (k,) [rad]."""
+    d = _polyval(c[4], u) - _polyval(c[3], u)
+    want = L * np.sin(np.clip(target, -1.3, 1.3))
+    base = np.zeros((_PITCH_BASIS, N_COEFFS))
+    for j in range(_PITCH_BASIS):
+        base[j, 3 + j : 7 + j] = (1.0, -3.0, 3.0, -1.0)
+    A = np.stack([_polyval(b, u) for b in base], axis=-1)
+    m = (u >= _PITCH_FIT[0]) & (u <= _PITCH_FIT[1])
+    coef = np.linalg.lstsq(A[m], (want - d)[m], rcond=None)[0]
+    return coef @ base
 
 
 def _lateral_bulge(c: np.ndarray, other_xy: np.ndarray, W: float) -> np.ndarray:
@@ -169,7 +225,7 @@ class FootTrajectory:
     anchor_xy: np.ndarray  # (S, 2) sole centre (flat), heel edge (HEEL), toe edge (TOE)
     yaw: np.ndarray  # (S,)
     amp: np.ndarray  # (S,) θ_HS (HEEL) or φ_TO (TOE)
-    coeffs: np.ndarray  # (S, 5, 7) swing polynomials in u
+    coeffs: np.ndarray  # (S, 5, N_COEFFS) swing polynomials in u
 
     def channels(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``m (n, 2), yaw (n,), z_heel (n,), z_toe (n,)`` at times ``t (n,)``."""
@@ -195,20 +251,26 @@ class FootTrajectory:
 
     def pose(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``R_WfromShoe (n, 3, 3)`` and sole centre ``p_SoleCentre_W (n, 3)``."""
-        m, yaw, zh, zt = self.channels(t)
-        theta = np.arcsin(np.clip((zt - zh) / self.shoe_length_m, -1.0, 1.0))
-        cy, sy, ct, st = np.cos(yaw), np.sin(yaw), np.cos(theta), np.sin(theta)
-        # Rz(yaw) @ Ry(−theta): columns = shoe x, y, z axes in the world.
-        R = np.stack(
-            [
-                np.stack([cy * ct, -sy, -cy * st], axis=-1),
-                np.stack([sy * ct, cy, -sy * st], axis=-1),
-                np.stack([st, np.zeros_like(st), ct], axis=-1),
-            ],
-            axis=-2,
-        )
-        p = np.concatenate([m, (0.5 * (zh + zt))[:, None]], axis=-1)
-        return R, p
+        return shoe_pose(*self.channels(t), self.shoe_length_m)
+
+
+def shoe_pose(
+    m: np.ndarray, yaw: np.ndarray, zh: np.ndarray, zt: np.ndarray, L: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """``R_WfromShoe = Rz(yaw) Ry(−θ)`` and the sole centre from the five channels."""
+    theta = np.arcsin(np.clip((zt - zh) / L, -1.0, 1.0))
+    cy, sy, ct, st = np.cos(yaw), np.sin(yaw), np.cos(theta), np.sin(theta)
+    # columns = shoe x, y, z axes in the world
+    R = np.stack(
+        [
+            np.stack([cy * ct, -sy, -cy * st], axis=-1),
+            np.stack([sy * ct, cy, -sy * st], axis=-1),
+            np.stack([st, np.zeros_like(st), ct], axis=-1),
+        ],
+        axis=-2,
+    )
+    p = np.concatenate([m, (0.5 * (zh + zt))[:, None]], axis=-1)
+    return R, p
 
 
 def build_foot_trajectory(
@@ -217,11 +279,13 @@ def build_foot_trajectory(
     shoe_length_m: float,
     shoe_width_m: float,
     clearance_m: float,
+    pitch_target: PitchTarget | None = None,
 ) -> FootTrajectory:
-    """Segments of one foot from its stances; ``other`` (the other foot) sizes the side bulge."""
+    """Segments of one foot from its stances; ``other`` (the other foot) sizes the side bulge;
+    ``pitch_target`` (optional) steers the swing pitch (:func:`_swing_coeffs`)."""
     L = shoe_length_m
     rows: list[tuple] = []
-    zero = np.zeros((5, 7))
+    zero = np.zeros((5, N_COEFFS))
     for i, st in enumerate(stances):
         d = _dir(st.yaw)
         xy = np.asarray(st.xy)
@@ -238,7 +302,7 @@ def build_foot_trajectory(
                 (st.t_ho, st.t_to - st.t_ho, TOE, xy + 0.5 * L * d, st.yaw, st.to_pitch_rad, zero)
             )
             other_xy = _standing_other(other, 0.5 * (st.t_to + nxt.t_hs))
-            c = _swing_coeffs(st, nxt, other_xy, L, shoe_width_m, clearance_m)
+            c = _swing_coeffs(st, nxt, other_xy, L, shoe_width_m, clearance_m, pitch_target)
             rows.append((st.t_to, nxt.t_hs - st.t_to, SWING, np.zeros(2), 0.0, 0.0, c))
     cols = list(zip(*rows, strict=True))
     return FootTrajectory(

@@ -36,6 +36,7 @@ back to 0 when the walk ends; ``Φ_L``: the phase of a left heel strike):
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,6 +45,7 @@ from scipy.linalg import cho_solve_banded, cholesky_banded, solveh_banded
 from scipy.ndimage import maximum_filter1d
 
 from gaitnet.sim.gait_plan import LEFT, StepPlan, WalkPath, smoothstep7
+from gaitnet.sim.pelvis_euler import alpha_body, euler_zyx_matrix, omega_body
 
 __all__ = [
     "PelvisGrid",
@@ -100,57 +102,6 @@ class PelvisParams:
     height_hold_s: float = 0.25
 
 
-def euler_zyx_matrix(yaw: np.ndarray, tilt: np.ndarray, obl: np.ndarray) -> np.ndarray:
-    """``Rz(yaw) Ry(tilt) Rx(obl)`` for arrays of angles → ``(..., 3, 3)``."""
-    cz, sz, cy, sy, cx, sx = (f(a) for a in (yaw, tilt, obl) for f in (np.cos, np.sin))
-    return np.stack(
-        [
-            np.stack([cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx], axis=-1),
-            np.stack([sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx], axis=-1),
-            np.stack([-sy, cy * sx, cy * cx], axis=-1),
-        ],
-        axis=-2,
-    )
-
-
-def _omega_body(ang: np.ndarray, d1: np.ndarray) -> np.ndarray:
-    """Body angular velocity of Z-Y-X Euler angles ``(ψ, θ, φ)`` with rates ``d1``."""
-    _, th, ph = ang.T
-    dps, dth, dph = d1.T
-    return np.stack(
-        [
-            dph - dps * np.sin(th),
-            dth * np.cos(ph) + dps * np.cos(th) * np.sin(ph),
-            -dth * np.sin(ph) + dps * np.cos(th) * np.cos(ph),
-        ],
-        axis=-1,
-    )
-
-
-def _alpha_body(ang: np.ndarray, d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
-    """Time derivative of :func:`_omega_body` (body angular acceleration)."""
-    _, th, ph = ang.T
-    dps, dth, dph = d1.T
-    aps, ath, aph = d2.T
-    sth, cth, sph, cph = np.sin(th), np.cos(th), np.sin(ph), np.cos(ph)
-    return np.stack(
-        [
-            aph - aps * sth - dps * cth * dth,
-            ath * cph
-            - dth * sph * dph
-            + aps * cth * sph
-            - dps * sth * dth * sph
-            + dps * cth * cph * dph,
-            -ath * sph
-            - dth * cph * dph
-            + aps * cth * cph
-            - dps * sth * dth * cph
-            - dps * cth * sph * dph,
-        ],
-        axis=-1,
-    )
-
-
 @dataclass(frozen=True, eq=False)
 class PelvisTrajectory:
     """Quintic spline of the six pelvis channels ``(x, y, z, yaw, tilt, obliquity)``."""
@@ -171,12 +122,12 @@ class PelvisTrajectory:
         """``R_WfromP, p_PinW, v_PinW, a_PinW, omega_PinP`` (angular rate in the pelvis frame)."""
         c0, c1, c2 = (self._eval(t, nu) for nu in (0, 1, 2))
         R = euler_zyx_matrix(c0[:, 3], c0[:, 4], c0[:, 5])
-        return R, c0[:, :3], c1[:, :3], c2[:, :3], _omega_body(c0[:, 3:], c1[:, 3:])
+        return R, c0[:, :3], c1[:, :3], c2[:, :3], omega_body(c0[:, 3:], c1[:, 3:])
 
     def angular_acceleration(self, t: np.ndarray) -> np.ndarray:
         """``dω_P/dt`` in the pelvis frame (n, 3)."""
         c0, c1, c2 = (self._eval(t, nu) for nu in (0, 1, 2))
-        return _alpha_body(c0[:, 3:], c1[:, 3:], c2[:, 3:])
+        return alpha_body(c0[:, 3:], c1[:, 3:], c2[:, 3:])
 
 
 def _kernel_smooth(x: np.ndarray, half_width_s: float) -> np.ndarray:
@@ -248,11 +199,19 @@ class PelvisGrid:
 
 
 def pelvis_grid(
-    plan: StepPlan, path: WalkPath, p: PelvisParams, *, t_go: float, t_end: float, ankle_x: float
+    plan: StepPlan,
+    path: WalkPath,
+    p: PelvisParams,
+    *,
+    t_go: float,
+    t_end: float,
+    ankle_x: float,
+    sway: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> PelvisGrid:
     """Progression, sway and rotations on the grid over ``[0, t_end]`` (moving from ``t_go``).
 
-    ``ankle_x`` is the ankle's forward offset from the sole centre (shoe frame).
+    ``ankle_x`` is the ankle's forward offset from the sole centre (shoe frame); ``sway(t)``
+    (n, 2) the postural sway (forward, left) [m] while standing, faded out by ``1 − E``.
     """
     t = np.arange(0.0, t_end + 0.5 * GRID_DT_S, GRID_DT_S)
     s = _progression(t, plan, ankle_x, p.progression_smooth_s)
@@ -264,7 +223,12 @@ def pelvis_grid(
     obl = E * p.obliquity_rad * np.cos(np.pi * (phi - k_left - 0.3))
     tilt = E * p.tilt_rad * np.cos(2 * np.pi * (phi - 0.9))
     lateral = E * p.lateral_m * np.cos(np.pi * (phi - k_left - 0.6))
-    xy = path.point(s) + path.normal(s) * lateral[:, None]
+    normal = path.normal(s)
+    xy = path.point(s) + normal * lateral[:, None]
+    if sway is not None:
+        ap_ml = sway(t) * (1.0 - E)[:, None]
+        forward = np.stack([normal[:, 1], -normal[:, 0]], axis=-1)
+        xy = xy + forward * ap_ml[:, :1] + normal * ap_ml[:, 1:]
     return PelvisGrid(t, xy, yaw, tilt, obl, E, phi, float(len(h) - 1))
 
 

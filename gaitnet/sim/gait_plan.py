@@ -1,9 +1,9 @@
 """Footstep plan of a walk: the path, where each foot lands and when (gait events).
 
-A walk starts and ends standing with the feet side by side. Steps alternate; step ``k``
-(``k = 1..N``) moves foot ``side[k]`` from its previous foot-flat place to a new one whose sole
-centre lies ``±width/2`` beside the path at arc length ``s_k``. Step lengths ramp up over the
-first two steps (0.6, 0.9 of the steady length) and down over the last (0.8) and a closing step
+A walk starts and ends standing with the feet side by side, ``stand_width`` apart. Steps alternate;
+step ``k`` (``k = 1..N``) moves foot ``side[k]`` from its previous foot-flat place to a new one
+whose sole centre lies ``±width/2`` beside the path at arc length ``s_k``. Step lengths ramp up over
+the first two steps (0.6, 0.9 of the steady length) and down over the last (0.8) and a closing step
 brings the trailing foot beside the leading one.
 
 Timing (fractions of the gait cycle = 2 steps, steady state): heel strike (HS) at 0, foot flat
@@ -124,6 +124,7 @@ def plan_steps(
     step_m: float,
     speed_mps: float,
     step_width_m: float,
+    stand_width_m: float,
     step_length_cv: float,
     step_time_cv: float,
     step_width_std_m: float,
@@ -138,7 +139,9 @@ def plan_steps(
     """Footsteps and gait events for a walk of ``path.length_m`` (see the module docstring).
 
     ``step_m`` is the preferred steady step length; it is adjusted so that the nominal steps
-    add up to the walk length. ``timing`` = (stance, foot-flat, heel-off) cycle fractions.
+    add up to the walk length. The feet stand ``stand_width_m`` apart (sole centres) at the
+    start and after the closing step, ``step_width_m`` (± noise) while walking. ``timing`` =
+    (stance, foot-flat, heel-off) cycle fractions.
     """
     tm = _Timing(*timing)
     factors, step = _step_factors(path.length_m, step_m)
@@ -148,11 +151,12 @@ def plan_steps(
     period = step / speed_mps
     durations = period * (1.0 + step_time_cv * np.clip(rng.normal(size=n), -3, 3))
     widths = np.maximum(step_width_m + step_width_std_m * np.clip(rng.normal(size=n), -3, 3), 0.0)
+    widths[-1] = max(2.0 * stand_width_m - widths[-2], 0.0)  # closing: feet stand_width apart
     arc = np.concatenate([[0.0], np.cumsum(lengths)])
     sides = (first_side + np.arange(n)) % 2
     lead = 1.0 - 2.0 * tm.heel_off
     h = t_first_heel_off + lead * durations[0] + np.concatenate([[0.0], np.cumsum(durations)])
-    stances = _build_stances(path, arc, sides, h, durations, widths, step_width_m, toe_out_rad, tm)
+    stances = _build_stances(path, arc, sides, h, durations, widths, stand_width_m, toe_out_rad, tm)
     stances = _with_angles(stances, hs_pitch_rad, to_pitch_rad, step)
     return StepPlan(
         stances=stances,

@@ -14,11 +14,12 @@ given by :meth:`Subject.ankle_in_shoe` (the ankle joint, above the sole near the
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from gaitnet.motion.skeleton import LowerBodySkeleton, builtin_skeleton
+from gaitnet.sim.gait_style import GaitStyle, sample_gait_style
 from gaitnet.sim.scene import Appearance
 
 __all__ = ["HEIGHT_RANGE_M", "Subject", "sample_subject"]
@@ -87,6 +88,7 @@ class Subject:
     trouser_rgb: RGB
     shoe_rgb: RGB
     sole_rgb: RGB
+    gait_style: GaitStyle = field(default_factory=GaitStyle)  # how this person walks
 
     def __post_init__(self) -> None:
         lengths = (self.thigh_m, self.shank_m, self.hip_width_m, self.ankle_height_m)
@@ -163,7 +165,8 @@ def sample_subject(
     height_range: tuple[float, float] = HEIGHT_RANGE_M,
     height_m: float | None = None,
 ) -> Subject:
-    """A random subject: height uniform in ``height_range`` (or ``height_m``), ratios ±3 %."""
+    """A random subject: height uniform in ``height_range`` (or ``height_m``), ratios ±3 %, and
+    a gait style (:class:`gaitnet.sim.gait_style.GaitStyle`)."""
     lo, hi = height_range
     if not 1.0 <= lo <= hi <= 2.3:
         raise ValueError(f"height_range must be within 1.0–2.3 m and ordered, got {height_range}")
@@ -193,4 +196,5 @@ def sample_subject(
         trouser_rgb=_pick_colour(rng, _TROUSERS_SRGB, 0.04),
         shoe_rgb=_pick_colour(rng, _SHOES_SRGB, 0.04),
         sole_rgb=_pick_colour(rng, _SOLES_SRGB, 0.03),
+        gait_style=sample_gait_style(rng),  # drawn last: the draws above are unchanged
     )
