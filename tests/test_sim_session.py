@@ -248,3 +248,39 @@ def test_camera_looking_away_from_the_feet_is_logged_not_hung(tmp_path: Path, ca
         result = simulate_session(cfg, 0, tmp_path / "away")
     assert result.marker_checks["visible_marker_fraction"] < 0.5
     assert any("foot markers are in the image" in r.message for r in caplog.records)
+
+
+def test_rig_motion_imu_errors_and_frame_timing_truths_are_written(tiny_sim: Path) -> None:
+    import csv
+
+    import yaml
+
+    gt = tiny_sim / "groundtruth"
+    session = SessionFolder(tiny_sim)
+    # Camera in the pelvis frame: camera_frames = pelvis_frames · mount_frames, and it moves.
+    t_c, T_WC = read_tum(gt / "camera_frames.tum")
+    t_p, T_WP = read_tum(gt / "pelvis_frames.tum")
+    t_m, T_PC = read_tum(gt / "mount_frames.tum")
+    np.testing.assert_allclose(t_m, t_c)
+    np.testing.assert_allclose(T_WP @ T_PC, T_WC, atol=1e-5)
+    assert np.ptp(T_PC[:, :3, 3], axis=0).max() > 2e-4
+    # IMU timestamps = true sampling instants + the offset in imu_calibration.yaml.
+    cal = yaml.safe_load((gt / "imu_calibration.yaml").read_text())
+    truth = np.load(gt / "imu_truth.npz")
+    np.testing.assert_array_equal(truth["t_ns"], session.imu.t_ns)
+    np.testing.assert_allclose(
+        truth["t_ns"] * 1e-9 - truth["t_true_s"], cal["imu_time_offset_s"], atol=2e-9
+    )
+    assert 0 < abs(cal["imu_time_offset_s"]) <= 0.005
+    assert abs(np.diag(cal["accel_matrix"]) - 1).max() > 0 and cal["accel_lsb_mps2"] > 0
+    motion = np.load(gt / "mount_motion.npz")
+    assert np.abs(motion["impact_m"]).max() > 0 and np.abs(motion["wobble_m"]).max() > 0
+    # Frame timing: kept frames are the session's frames, dropped ones are listed.
+    rows = list(csv.DictReader((gt / "frame_times.csv").read_text().splitlines()))
+    kept = [r for r in rows if r["dropped"] == "0"]
+    np.testing.assert_array_equal([int(r["t_ns"]) for r in kept], session.frame_times_ns)
+    assert [int(r["frame"]) for r in rows if r["dropped"] == "1"] == cal["dropped_frames"]
+    jitter = session.frame_times_ns * 1e-9 - np.array(
+        [float(r["true_exposure_mid_s"]) for r in kept]
+    )
+    assert 0 < np.abs(jitter).max() < 0.001

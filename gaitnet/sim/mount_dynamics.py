@@ -20,7 +20,9 @@ displaced by ``e(t)`` (pelvis frame) and turned by ``δθ(t)``::
 - ``x_wobble``: a damped spring per axis, ``ẍ + 2ζ_w ω_w ẋ + ω_w² x = −γ u`` with ``u`` the
   pelvis acceleration in the pelvis frame plus the impact acceleration (the strap is shaken
   by the body; ``γ = wobble_gain`` is the compliance as a fraction of a free spring-mass, 0 =
-  rigid), integrated from rest at ``t = 0`` (bilinear transform at 1 kHz).
+  rigid), integrated from rest at ``t = 0`` (bilinear transform at 1 kHz). Above its natural
+  frequency the spring gives way, so the rig keeps about ``1 − γ`` of the shock's 10–30 Hz
+  content (``impact_peak_g`` is the shock at the pelvis).
 - ``κ`` (``wobble_tilt_deg_per_mm``): the rig rocks about its belt clip, so a fore-aft or
   lateral displacement tilts it (pitch / roll about the pelvis y / x axes).
 

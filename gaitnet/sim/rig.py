@@ -69,7 +69,7 @@ class MountConfig:
 
     The rig's motion on its strap (:mod:`gaitnet.sim.mount_dynamics`; magnitudes in
     docs/references.md, *Simulator realism: IMU and timing*): ``impact_peak_g`` (0–5 g; 0 =
-    off) the heel-strike shock's peak acceleration at the rig at 1.3 m/s (linear in speed),
+    off) the heel-strike shock's peak acceleration at the pelvis at 1.3 m/s (linear in speed),
     ringing at ``impact_freq_hz`` (5–50 Hz) with damping ratio ``impact_damping_ratio``
     (0.05–1); the strap wobble, a damped spring of natural frequency ``wobble_freq_hz``
     (1–15 Hz) and damping ratio ``wobble_damping_ratio`` (0.02–1) driven by the pelvis
@@ -84,7 +84,7 @@ class MountConfig:
     offset_m: tuple[float, float, float] = (0.17, 0.0, 0.05)
     imu_in_camera_m: tuple[float, float, float] = (-0.0302, 0.0074, 0.0160)
     imu_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    impact_peak_g: float = 1.5
+    impact_peak_g: float = 2.0
     impact_freq_hz: float = 20.0
     impact_damping_ratio: float = 0.3
     wobble_freq_hz: float = 4.0
