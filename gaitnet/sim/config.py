@@ -2,7 +2,8 @@
 
 Sections: ``subject``, ``gait`` (:class:`gaitnet.sim.gait.GaitConfig`), ``camera`` and
 ``mount`` (:mod:`gaitnet.sim.rig`), ``imu`` (:class:`gaitnet.sim.imu.ImuConfig`), ``scene``,
-``sensor`` (:class:`gaitnet.sim.sensor_model.SensorNoiseConfig`), ``timing``
+``sensor`` (:class:`gaitnet.sim.sensor_model.SensorNoiseConfig`), ``floor_relief``
+(:class:`gaitnet.sim.floor_relief.FloorReliefConfig`), ``timing``
 (:class:`gaitnet.sim.frame_timing.FrameTimingConfig`) and ``output``. Every key
 has a default, so an empty file is the default session. Each section checks its values' ranges
 in its ``__post_init__``; :class:`SimConfig` checks the few that depend on two sections. See
@@ -15,6 +16,7 @@ from dataclasses import dataclass, field
 
 from gaitnet.checks import check_each, check_int_range, check_range
 from gaitnet.sim.floor import COARSEST_TEXEL_M, FLOOR_FAMILIES, MAX_TEXTURE_SIDE
+from gaitnet.sim.floor_relief import FloorReliefConfig
 from gaitnet.sim.frame_timing import FrameTimingConfig
 from gaitnet.sim.gait import GaitConfig
 from gaitnet.sim.imu import ImuConfig
@@ -118,6 +120,7 @@ class SimConfig:
     imu: ImuConfig = field(default_factory=ImuConfig)
     scene: SceneConfig = field(default_factory=SceneConfig)
     sensor: SensorNoiseConfig = field(default_factory=SensorNoiseConfig)
+    floor_relief: FloorReliefConfig = field(default_factory=FloorReliefConfig)
     timing: FrameTimingConfig = field(default_factory=FrameTimingConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
 

@@ -164,7 +164,9 @@ def simulate_frame(
     result = scene.render(cfg.camera, t, T_WfromC)
     exposure = auto_exposure(result.rgb_linear) * scene.exposure_gain
     K = cfg.camera.intrinsics().K
-    rgb, depth = apply_sensor(result, K, rngs["sensor"], cfg.sensor, exposure)
+    rgb, depth = apply_sensor(
+        result, K, rngs["sensor"], cfg.sensor, exposure, rngs["depth"], scene.depth_unit
+    )
     return DatasetFrame(scene, t, K, T_WfromC, result, rgb, depth)
 
 

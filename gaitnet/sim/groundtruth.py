@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import io
+import json
 from collections.abc import Callable
 from pathlib import Path
 
@@ -71,6 +72,13 @@ class GroundTruthWriter:
             return
         self._write_png(self.root / "labels" / f"{t_ns}.png", label)
         self._write_png(self.root / "instances" / f"{t_ns}.png", instance)
+
+    def write_floor_and_depth(self, floor_relief: dict, depth_unit: dict) -> None:
+        """``floor_relief.json`` (the floor's height field, :mod:`gaitnet.sim.floor_relief`)
+        and ``depth_unit.json`` (the depth camera's fixed errors, :mod:`gaitnet.sim.
+        sensor_depth`)."""
+        for name, obj in (("floor_relief.json", floor_relief), ("depth_unit.json", depth_unit)):
+            atomic_write_text(self.root / name, json.dumps(obj, indent=1) + "\n")
 
     def write_rig(
         self,
@@ -143,7 +151,6 @@ class GroundTruthWriter:
         write_tum(
             root / "camera_imurate.tum", imu.t_s, T_WI @ T_IfromC, "camera at true IMU times"
         )
-
 
         root_orient, trans, joint_aa = walk.smpl_pose(times)
         _save_npz(

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gaitnet.sim.floor import Clutter, ClutterBox, ClutterCylinder, FloorTexture
+from gaitnet.sim.floor_relief import FloorRelief
 from gaitnet.sim.render_draw import Frame, draw
 from gaitnet.sim.render_draw import antialias as antialias_edges
 from gaitnet.sim.render_env import ContactPatch, ShadowSegment, render_environment
@@ -227,6 +228,7 @@ def render_frame(
     return_normals: bool = False,
     antialias: bool = True,
     timings: dict[str, float] | None = None,
+    relief: FloorRelief | None = None,
 ) -> RenderResult:
     """Render one frame seen by a camera with matrix ``K`` at pose ``T_WfromC`` (module doc).
 
@@ -234,7 +236,8 @@ def render_frame(
     labels and instances stay point-sampled). ``timings``, when given, receives the CPU
     seconds of the calling thread spent per stage (``environment``, ``clutter``, ``legs``,
     ``shoes``, ``antialias``), accumulated over calls (CPU time, so that other processes on
-    the machine do not inflate them).
+    the machine do not inflate them). ``relief``: the floor's height field
+    (:mod:`gaitnet.sim.floor_relief`; None: the plane z = 0).
     """
     clock = _Clock(timings)
     light = light or Lighting()
@@ -242,7 +245,9 @@ def render_frame(
     T_WfromC = np.asarray(T_WfromC, np.float64)
     T_CfromW = np.linalg.inv(T_WfromC)
     shadows, patches = _occluders(body, tuple(clutter), light)
-    env = render_environment(K, width, height, T_WfromC, floor, light, shadows, patches)
+    env = render_environment(
+        K, width, height, T_WfromC, floor, light, shadows, patches, relief=relief
+    )
     clock.lap("environment")
     lf = LightFrame.make(light, T_CfromW[:3, :3])
     env_rgb = env.rgb.copy() if antialias else env.rgb

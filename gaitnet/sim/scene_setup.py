@@ -18,7 +18,7 @@ leaves the ``mount`` stream untouched).
 from __future__ import annotations
 
 import numbers
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -27,6 +27,7 @@ from gaitnet.geometry import make_T, so3_exp
 from gaitnet.io.types import AprilTagBoard
 from gaitnet.sim.config import SimConfig
 from gaitnet.sim.floor import FLOOR_FAMILIES, Clutter, FloorTexture, make_clutter, make_floor
+from gaitnet.sim.floor_relief import FloorRelief, flat_relief, sample_floor_relief
 from gaitnet.sim.gait import Walk, generate_walk
 from gaitnet.sim.mount_dynamics import MountMotion, build_mount_motion, compose_kinematics
 from gaitnet.sim.render import render_frame
@@ -34,6 +35,7 @@ from gaitnet.sim.render_color import srgb_to_linear
 from gaitnet.sim.render_types import Lighting, RenderResult
 from gaitnet.sim.rig import CameraConfig, MountConfig
 from gaitnet.sim.scene import SIDES, Appearance
+from gaitnet.sim.sensor_depth import DepthUnit, sample_depth_unit
 from gaitnet.sim.subject import Subject, sample_subject
 
 __all__ = [
@@ -61,6 +63,8 @@ STREAMS = (
     "rig_motion",  # heel-strike shock amplitudes (mount_dynamics)
     "imu_calibration",  # IMU scale / misalignment errors and time offset
     "frame_timing",  # frame timestamp jitter and dropped frames
+    "floor_relief",  # the floor's millimetre relief (floor_relief)
+    "depth",  # the depth camera unit's fixed errors and per-frame depth noise (sensor_depth)
 )
 SEED_LIMIT = 2**32  # seeds are 0 ≤ seed < 2**32 (the command line promises 32 bits)
 ROOM_HEIGHT_M = 2.8
@@ -177,6 +181,8 @@ class SimScene:
     exposure_gain: float
     mount: MountConfig
     mount_motion: MountMotion
+    relief: FloorRelief = field(default_factory=flat_relief)
+    depth_unit: DepthUnit = field(default_factory=DepthUnit)
 
     @property
     def pitch_deg(self) -> float:
@@ -207,6 +213,7 @@ class SimScene:
             self.appearance,
             self.clutter,
             self.light,
+            relief=self.relief,
         )
 
 
@@ -259,4 +266,6 @@ def build_scene(cfg: SimConfig, rngs: dict[str, np.random.Generator]) -> SimScen
         exposure_gain=exposure_gain,
         mount=mount,
         mount_motion=mount_motion,
+        relief=sample_floor_relief(rngs["floor_relief"], cfg.floor_relief, family, extent),
+        depth_unit=sample_depth_unit(rngs["depth"]),
     )

@@ -90,7 +90,7 @@ class DepthNoiseConfig:
     correlated_fraction: float = 0.7
     match_window_px: int = 7
     disparity_offset_px: float = 0.08
-    waviness_px: float = 0.03
+    waviness_px: float = 0.05
     subpixel_steps: int = 32
     min_range_m: float = 0.4
     max_range_m: float = 6.0

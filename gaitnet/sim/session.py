@@ -167,7 +167,9 @@ def simulate_session(
             target = auto_exposure(result.rgb_linear)
             auto = target if auto is None else auto + 0.25 * (target - auto)
             exposure = auto * scene.exposure_gain * float(np.exp(drift[k]))
-            rgb, depth = apply_sensor(result, K, sensor_rng, cfg.sensor, exposure)
+            rgb, depth = apply_sensor(
+                result, K, sensor_rng, cfg.sensor, exposure, rngs["depth"], scene.depth_unit
+            )
             writer.add_frame(int(t_ns[k]), rgb, depth)
             gt.add_frame(int(t_ns[k]), result.label, result.instance)
             checks.extend(
@@ -188,6 +190,7 @@ def simulate_session(
         writer.set_imu(imu)
         gt.write_all(walk, times, T_WfromC_all, T_CfromI, imu_truth, checks, t_ns)
         gt.write_rig(scene.mount_motion, frames, imu_truth, imu_calibration)
+        gt.write_floor_and_depth(scene.relief.to_dict(), scene.depth_unit.to_dict(cfg.sensor))
         resolved = config_text if config_text is not None else dump_config(cfg)
         atomic_write_text(
             writer.staging / "sim_config.yaml",
