@@ -6,8 +6,9 @@ Measurement model (thesis eq. (3.2), world z up, ``g̃ = [0, 0, g]``)::
     y_g = Q(M_g ω_I + b_g + η_g)                  (angular rate in the IMU frame)
 
 with ``C(q) = R_IfromW``, ``M`` the session's scale / cross-axis errors and ``Q`` the
-quantisation (:class:`ImuCalibration`). The IMU is rigidly attached at ``T_BfromI`` to a body B
-(the camera, which moves on the pelvis: :mod:`gaitnet.sim.mount_dynamics`):
+quantisation (:class:`ImuCalibration`); ``f`` and ``ω`` are averaged over each sample period
+(:func:`averaged_signals`, a decimation filter). The IMU is rigidly attached at ``T_BfromI`` to
+a body B (the camera, which moves on the pelvis: :mod:`gaitnet.sim.mount_dynamics`):
 ``p_I = p_B + R_WB p_IinB``, ``ω_I = R_IB ω_B``, and
 ``a_I = a_B + R_WB (α_B × p_IinB + ω_B × (ω_B × p_IinB))`` where ``α_B = dω_B/dt`` (body
 frame). Noise: white noise of density ``σ`` gives per-sample std ``σ √f``; the bias random walk
@@ -168,7 +169,9 @@ def quantise(values: np.ndarray, lsb: float) -> np.ndarray:
 @dataclass(frozen=True)
 class ImuTruth:
     """The exact IMU signals and biases at the true sample times ``t_s`` (for ground truth and
-    tests); ``t_ns`` are the samples' timestamps in ``imu.csv`` (``t_s`` + the time offset)."""
+    tests); ``t_ns`` are the samples' timestamps in ``imu.csv`` (``t_s`` + the time offset).
+    Poses and velocities are at ``t_s``; ``specific_force`` and ``omega_I`` are averaged over
+    the sample period centred on ``t_s`` (:func:`averaged_signals`)."""
 
     t_s: np.ndarray
     R_WfromI: np.ndarray
@@ -216,6 +219,24 @@ def rig_imu_truth(
     return R_WI, p_I, v_I, f_I, w_I
 
 
+def averaged_signals(
+    body: PelvisKinematics, T_BfromI: np.ndarray, t_s: np.ndarray, cfg: ImuConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """Specific force and angular rate averaged over each sample period centred on ``t_s``
+    (4-point Gauss–Legendre), as a MEMS IMU's decimation filter delivers them: the samples
+    keep the integral of the signal (Δv, Δθ), so the heel-strike shocks' 10–30 Hz content
+    integrates correctly at 200 Hz instead of aliasing (:mod:`gaitnet.sim.mount_dynamics`)."""
+    nodes, weights = np.polynomial.legendre.leggauss(4)
+    half = 0.5 / cfg.rate_hz
+    f = np.zeros((len(t_s), 3))
+    w = np.zeros((len(t_s), 3))
+    for x, weight in zip(nodes, weights, strict=True):
+        _, _, _, f_k, w_k = rig_imu_truth(body, T_BfromI, t_s + half * x, cfg.gravity_mps2)
+        f += 0.5 * weight * f_k
+        w += 0.5 * weight * w_k
+    return f, w
+
+
 def simulate_imu(
     body: PelvisKinematics,
     T_BfromI: np.ndarray,
@@ -234,7 +255,8 @@ def simulate_imu(
     cal = calibration if calibration is not None else ImuCalibration()
     t = imu_sample_times(t0_s, t1_s, cfg, rng)
     t = t[t + cal.time_offset_s >= 0.0]
-    R_WI, p_I, v_I, f_I, w_I = rig_imu_truth(body, T_BfromI, t, cfg.gravity_mps2)
+    R_WI, p_I, v_I, _, _ = rig_imu_truth(body, T_BfromI, t, cfg.gravity_mps2)
+    f_I, w_I = averaged_signals(body, T_BfromI, t, cfg)
     n = len(t)
     if cfg.noise_free:
         b_g = np.zeros((n, 3))
