@@ -22,7 +22,8 @@ so every ``subject``, ``gait``, ``camera`` (but ``fps``), ``mount`` (but the IMU
 (``pitch_range_deg`` replaces it: the command's ``--pitch-min/--pitch-max``).
 
 Keys that mean nothing for single frames (:data:`SINGLE_FRAME_UNUSED`: the frame rate, the IMU,
-the IMU's pose in the camera, the exposure drift over a session, ``output.labels`` — a
+the IMU's pose in the camera, the exposure drift over a session, the ``timing`` section
+(timestamp jitter, dropped frames, camera–IMU offset), ``output.labels`` — a
 segmentation data set always has labels) are refused with a :class:`~gaitnet.errors.
 ConfigError` when they differ from their defaults, and left out of ``dataset_config.yaml``.
 
@@ -73,6 +74,7 @@ SINGLE_FRAME_UNUSED: dict[str, str] = {
     "scene.exposure_drift": "the drift is over a session; each frame draws its exposure from "
     "scene.exposure_range",
     "output.labels": "a segmentation data set always has label maps",
+    "timing": "frame timestamps, dropped frames and the camera-IMU offset belong to a session",
 }
 
 
