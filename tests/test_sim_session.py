@@ -215,7 +215,7 @@ def test_output_that_is_a_file_is_refused_before_any_work(tmp_path: Path, monkey
 def test_exception_mid_run_leaves_nothing_and_leftovers_of_killed_runs_go(
     tmp_path: Path, monkeypatch
 ) -> None:
-    import gaitnet.sim.session as session_module
+    import gaitnet.sim.session_frames as session_module  # frames are sensed there
 
     cfg = load_config(SimConfig, CONFIG, [*FAST, "camera.fps=2"])
     real, calls = session_module.apply_sensor, []
@@ -228,7 +228,7 @@ def test_exception_mid_run_leaves_nothing_and_leftovers_of_killed_runs_go(
 
     monkeypatch.setattr(session_module, "apply_sensor", failing)
     with pytest.raises(RuntimeError, match="boom"):
-        simulate_session(cfg, 0, tmp_path / "out")
+        simulate_session(cfg, 0, tmp_path / "out", workers=1)  # the patch is in this process
     assert list(tmp_path.iterdir()) == []
     monkeypatch.setattr(session_module, "apply_sensor", real)
     # A staging folder of a killed run (a process id that no longer runs) is removed.

@@ -407,7 +407,7 @@ def build_pyramid(img: NDArray, texel_m: float) -> tuple[NDArray, ...]:
     return tuple(levels)
 
 
-MIP_BLEND = 0.35  # width (in levels) of the cross-fade between two mip levels
+MIP_BLEND = 0.15  # width (in levels) of the cross-fade between two mip levels
 
 
 def sample_mipmapped(

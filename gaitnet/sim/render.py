@@ -37,6 +37,7 @@ from gaitnet.sim.render_materials import (
     shade_shoe,
     shoe_texture,
 )
+from gaitnet.sim.render_motion import Motion, motion_blur
 from gaitnet.sim.render_prims import (
     ConvexShape,
     RoundCone,
@@ -229,6 +230,7 @@ def render_frame(
     antialias: bool = True,
     timings: dict[str, float] | None = None,
     relief: FloorRelief | None = None,
+    motion: Motion | None = None,
 ) -> RenderResult:
     """Render one frame seen by a camera with matrix ``K`` at pose ``T_WfromC`` (module doc).
 
@@ -237,7 +239,10 @@ def render_frame(
     seconds of the calling thread spent per stage (``environment``, ``clutter``, ``legs``,
     ``shoes``, ``antialias``), accumulated over calls (CPU time, so that other processes on
     the machine do not inflate them). ``relief``: the floor's height field
-    (:mod:`gaitnet.sim.floor_relief`; None: the plane z = 0).
+    (:mod:`gaitnet.sim.floor_relief`; None: the plane z = 0). ``motion``: the camera pose and
+    body at the end of the exposure; the colour is then integrated over the exposure
+    (:mod:`gaitnet.sim.render_motion`; depth, labels and instances stay the mid-exposure
+    instant; stage ``motion_blur``).
     """
     clock = _Clock(timings)
     light = light or Lighting()
@@ -250,7 +255,7 @@ def render_frame(
     )
     clock.lap("environment")
     lf = LightFrame.make(light, T_CfromW[:3, :3])
-    env_rgb = env.rgb.copy() if antialias else env.rgb
+    env_rgb = env.rgb.copy() if antialias or motion is not None else env.rgb
     fr = Frame(
         K=K,
         rays=camera_rays(K, width, height),
@@ -274,7 +279,11 @@ def render_frame(
     if antialias:
         antialias_edges(fr, env_rgb)
         clock.lap("antialias")
-    return RenderResult(fr.rgb, fr.depth, fr.label, fr.instance, fr.normals)
+    rgb = fr.rgb
+    if motion is not None:
+        rgb = motion_blur(rgb, env_rgb, fr.depth, fr.label, fr.instance, fr.rays, K, motion)
+        clock.lap("motion_blur")
+    return RenderResult(rgb, fr.depth, fr.label, fr.instance, fr.normals)
 
 
 class _Clock:

@@ -27,6 +27,16 @@ class CameraConfig:
     Valid values: ``width`` 16–2048 and ``height`` 16–2048 px; ``fx``, ``fy`` such that the
     horizontal and vertical fields of view lie within 10–150°; the principal point inside the
     image; ``fps`` 1–120 Hz.
+
+    Exposure (motion blur, :mod:`gaitnet.sim.render_motion`): the auto-exposure reaches the
+    brightness it wants (its exposure factor ``E``, :mod:`gaitnet.sim.session`) with an
+    exposure time ``E · exposure_time_ref_s`` (:meth:`exposure_time_s`) clipped to
+    ``exposure_time_range_s`` (the rest is analog gain), so dim scenes get long exposures and
+    long smears. ``exposure_time_ref_s`` (0.5–30 ms): the time for the reference brightness
+    ``E = 1`` (the default lighting: ~10 ms, an indoor D455 colour exposure);
+    ``exposure_time_range_s`` [shortest, longest] within 0.1 ms (the D455 colour sensor's
+    step) and the frame period; ``motion_blur`` false renders the mid-exposure instant only.
+    Sources: docs/references.md, *Simulator realism: rendering*.
     """
 
     width: int = 640
@@ -36,6 +46,9 @@ class CameraConfig:
     cx: float = 319.5
     cy: float = 239.5
     fps: float = 30.0
+    motion_blur: bool = True
+    exposure_time_ref_s: float = 0.010
+    exposure_time_range_s: tuple[float, float] = (0.001, 0.030)
 
     def __post_init__(self) -> None:
         check_int_range("width", self.width, 16, 2048)
@@ -47,6 +60,23 @@ class CameraConfig:
         check_range("cx", self.cx, 0.0, float(self.width), " px")
         check_range("cy", self.cy, 0.0, float(self.height), " px")
         check_range("fps", self.fps, 1.0, 120.0, " Hz")
+        check_range("exposure_time_ref_s", self.exposure_time_ref_s, 0.0005, 0.03, " s")
+        check_each("exposure_time_range_s", self.exposure_time_range_s, 1e-4, 1.0 / self.fps, " s")
+        if len(self.exposure_time_range_s) != 2 or (
+            self.exposure_time_range_s[0] > self.exposure_time_range_s[1]
+        ):
+            raise ValueError(
+                f"exposure_time_range_s must be [shortest, longest], got "
+                f"{list(self.exposure_time_range_s)}"
+            )
+
+    def exposure_time_s(self, exposure: float) -> float:
+        """Exposure time [s] that the auto-exposure uses for the exposure factor ``exposure``
+        (0 when ``motion_blur`` is off: the frame is one instant)."""
+        if not self.motion_blur:
+            return 0.0
+        lo, hi = self.exposure_time_range_s
+        return float(np.clip(exposure * self.exposure_time_ref_s, lo, hi))
 
     def intrinsics(self) -> CameraIntrinsics:
         return CameraIntrinsics(self.width, self.height, self.fx, self.fy, self.cx, self.cy)

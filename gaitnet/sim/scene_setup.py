@@ -32,6 +32,7 @@ from gaitnet.sim.gait import Walk, generate_walk
 from gaitnet.sim.mount_dynamics import MountMotion, build_mount_motion, compose_kinematics
 from gaitnet.sim.render import render_frame
 from gaitnet.sim.render_color import srgb_to_linear
+from gaitnet.sim.render_motion import Motion
 from gaitnet.sim.render_types import Lighting, RenderResult
 from gaitnet.sim.rig import CameraConfig, MountConfig
 from gaitnet.sim.scene import SIDES, Appearance
@@ -201,19 +202,31 @@ class SimScene:
         kin = compose_kinematics(self.walk.pelvis_kinematics, self.mount_motion.kinematics)
         return kin(t_s)
 
-    def render(self, camera: CameraConfig, t_s: float, T_WfromC: np.ndarray) -> RenderResult:
-        """The noise-free view of ``camera`` at pose ``T_WfromC`` and time ``t_s``."""
+    def render(
+        self, camera: CameraConfig, t_s: float, T_WfromC: np.ndarray, exposure_s: float = 0.0
+    ) -> RenderResult:
+        """The noise-free view of ``camera`` at pose ``T_WfromC`` and time ``t_s`` (the middle
+        of the exposure); with ``exposure_s`` > 0 the colour is integrated over
+        ``t_s ± exposure_s / 2`` (motion blur, :mod:`gaitnet.sim.render_motion`), while depth,
+        labels and instances stay the instant ``t_s``."""
+        body = self.walk.body_state(t_s)
+        motion = None
+        if exposure_s > 0:
+            t_end = t_s + exposure_s / 2
+            T_end = self.T_WfromC(np.array([t_end]))[0]
+            motion = Motion(T_WfromC, body, T_end, self.walk.body_state(t_end))
         return render_frame(
             camera.intrinsics().K,
             camera.width,
             camera.height,
             T_WfromC,
             self.floor,
-            self.walk.body_state(t_s),
+            body,
             self.appearance,
             self.clutter,
             self.light,
             relief=self.relief,
+            motion=motion,
         )
 
 

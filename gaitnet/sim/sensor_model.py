@@ -39,7 +39,10 @@ class SensorNoiseConfig(DepthNoiseConfig):
     Colour: ``full_well_e`` electrons at full scale and ``read_noise_e`` read noise (shot
     noise follows from them), ``black_level`` linear offset (flare, dark signal),
     ``vignetting`` relative irradiance loss in the image corners, ``blur_sigma_px`` Gaussian
-    optics/demosaicing blur, ``white_balance`` per-channel gains.
+    optics/demosaicing blur (the pixel's own area is integrated by the renderer; 0.4 px at
+    640×480 is a lens + Bayer-demosaicing PSF of σ ≈ 0.67 px of the native 1280×800 sensor,
+    i.e. MTF50 ≈ 0.28 cycles/pixel, scaled by the 0.6 downscaling of the 640×480 mode; docs/
+    references.md, *Simulator realism: rendering*), ``white_balance`` per-channel gains.
     Depth: the fields of :class:`~gaitnet.sim.sensor_depth.DepthNoiseConfig`.
     Valid ranges: :data:`SENSOR_RANGES`.
     """
@@ -48,7 +51,7 @@ class SensorNoiseConfig(DepthNoiseConfig):
     read_noise_e: float = 4.0
     black_level: float = 0.003
     vignetting: float = 0.3
-    blur_sigma_px: float = 0.6
+    blur_sigma_px: float = 0.4
     white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0)
 
     def __post_init__(self) -> None:

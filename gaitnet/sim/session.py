@@ -34,7 +34,7 @@ from gaitnet.sim.groundtruth import GroundTruthWriter
 from gaitnet.sim.imu import draw_imu_calibration, simulate_imu
 from gaitnet.sim.scene import SIDES
 from gaitnet.sim.scene_setup import build_scene, check_seed, rng_streams
-from gaitnet.sim.sensor_model import apply_sensor, auto_exposure
+from gaitnet.sim.session_frames import FrameOut, make_job, render_frames
 from gaitnet.sim.subject import Subject
 
 log = logging.getLogger(__name__)
@@ -105,8 +105,12 @@ def simulate_session(
     overwrite: bool = False,
     progress: Progress | None = None,
     config_text: str | None = None,
+    workers: int | None = None,
 ) -> SimulationResult:
     """Simulate and write one session; returns where and what (module docstring).
+
+    ``workers``: processes rendering frames (at most 2 at once; None: 2 where 3 or more CPUs
+    are usable, else 1; :mod:`gaitnet.sim.session_frames`); the same bytes for any value.
 
     ``seed``: 0 ≤ seed < 2**32 (else :class:`~gaitnet.errors.InputError`); ``out_dir`` must not
     be a file, nor a non-empty folder unless ``overwrite``; both are checked before any work.
@@ -118,7 +122,6 @@ def simulate_session(
     walk, subject, family = scene.walk, scene.subject, scene.floor_family
 
     cam = cfg.camera
-    K = cam.intrinsics().K
     T_CfromI = cfg.mount.T_CfromI()
     extra: dict[str, object] = {"simulator_seed": seed, "floor_family": family}
     if cfg.mount.pitch_is_drawn:
@@ -148,46 +151,33 @@ def simulate_session(
     )  # fmt: skip
     T_WfromC_all = scene.T_WfromC(times)
 
-    sensor_rng = rngs["sensor"]
-    drift = np.cumsum(
-        sensor_rng.normal(0.0, cfg.scene.exposure_drift / np.sqrt(len(times)), len(times))
-    )
+    job = make_job(cfg, scene, times, T_WfromC_all, rngs, marker_pixel_checks)
     preview_idx = preview_frames(times, cfg)
     preview_rows, captions, checks = [], [], []
-    auto = None
+    exposures = np.zeros((len(times), 2))
     writer = SessionWriter(out_dir, calibration, overwrite=overwrite)
-    indices: Iterable[int] = range(len(times))
-    if progress is not None:  # only now: a progress bar must not precede an early error
-        indices = progress(indices, len(times))
     try:
         gt = GroundTruthWriter(writer.staging / "groundtruth", cfg.output.labels, writer.write_png)
-        for k in indices:
-            T_WfromC = T_WfromC_all[k]
-            result = scene.render(cam, float(times[k]), T_WfromC)
-            target = auto_exposure(result.rgb_linear)
-            auto = target if auto is None else auto + 0.25 * (target - auto)
-            exposure = auto * scene.exposure_gain * float(np.exp(drift[k]))
-            rgb, depth = apply_sensor(
-                result, K, sensor_rng, cfg.sensor, exposure, rngs["depth"], scene.depth_unit
-            )
-            writer.add_frame(int(t_ns[k]), rgb, depth)
-            gt.add_frame(int(t_ns[k]), result.label, result.instance)
-            checks.extend(
-                (int(t_ns[k]), *row)
-                for row in marker_pixel_checks(
-                    walk,
-                    float(times[k]),
-                    T_WfromC,
-                    K,
-                    result.depth_m,
-                    result.label,
-                    result.instance,
-                )
-            )
+        outs: Iterable[FrameOut] = render_frames(job, workers)
+        if progress is not None:  # only now: a progress bar must not precede an early error
+            outs = progress(outs, len(times))
+        for out in outs:
+            k = out.index
+            writer.add_frame(int(t_ns[k]), out.rgb, out.depth_m)
+            gt.add_frame(int(t_ns[k]), out.label, out.instance)
+            checks.extend((int(t_ns[k]), *row) for row in out.marker_rows)
+            exposures[k] = out.exposure, out.exposure_s
             if k in preview_idx:
-                preview_rows.append([rgb, colourise_depth(depth), colourise_labels(result.label)])
+                preview_rows.append(
+                    [out.rgb, colourise_depth(out.depth_m), colourise_labels(out.label)]
+                )
                 captions.append(f"t = {times[k]:.2f} s")
         writer.set_imu(imu)
+        atomic_write_text(
+            writer.staging / "groundtruth" / "exposure.csv",
+            "t_ns,exposure_factor,exposure_time_s\n"
+            + "".join(f"{int(t_ns[k])},{e:.6g},{d:.6g}\n" for k, (e, d) in enumerate(exposures)),
+        )
         gt.write_all(walk, times, T_WfromC_all, T_CfromI, imu_truth, checks, t_ns)
         gt.write_rig(scene.mount_motion, frames, imu_truth, imu_calibration)
         gt.write_floor_and_depth(scene.relief.to_dict(), scene.depth_unit.to_dict(cfg.sensor))
