@@ -5,7 +5,15 @@ Renders a plausible waist-camera scene (camera 1 m high on the front of the pelv
 clutter) while the subject walks forward, prints frames/s and per-stage milliseconds, and
 saves an example (RGB | depth | labels) to ``docs/img/render_example.png``.
 
+With ``--session``: the whole default session (``configs/sim/default.yaml``) through
+``simulate_session`` with 1 and 2 worker processes (frames/s end to end, best of ``--repeat``
+runs: other processes on the machine only slow runs down), and where the time goes — CPU
+milliseconds per frame of every stage of a frame (render parts, motion blur, sensor colour and
+depth, PNG encoding of colour, depth and label maps), measured on one thread over every 4th
+frame of the same session.
+
     python benchmarks/bench_render.py [--frames 30] [--family tiles] [--pitch 50]
+    python benchmarks/bench_render.py --session [--repeat 3] [--workers 1 2]
 """
 
 from __future__ import annotations
@@ -28,6 +36,8 @@ from gaitnet.sim.floor import make_clutter, make_floor  # noqa: E402
 from gaitnet.sim.render import Lighting, render_frame  # noqa: E402
 from gaitnet.sim.scene import Appearance, BodyState, LegSegment, ShoeState  # noqa: E402
 from gaitnet.sim.sensor_model import SensorNoiseConfig, apply_sensor, auto_exposure  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
 
 R_PfromC_LEVEL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
 K = np.array([[385.0, 0.0, 319.5], [0.0, 385.0, 239.5], [0.0, 0.0, 1.0]])
@@ -110,8 +120,102 @@ def colour_labels(label: np.ndarray, instance: np.ndarray) -> np.ndarray:
     return out
 
 
+def session_speed(workers: tuple[int, ...] = (1, 2), repeat: int = 3, seed: int = 0) -> dict:
+    """Best frames/s of the default session end to end per number of workers."""
+    import tempfile
+
+    from gaitnet.config import load_config
+    from gaitnet.sim.config import SimConfig
+    from gaitnet.sim.session import simulate_session
+
+    cfg = load_config(SimConfig, ROOT / "configs" / "sim" / "default.yaml")
+    best: dict[int, float] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(repeat):
+            for w in workers:
+                t0 = time.perf_counter()
+                r = simulate_session(cfg, seed, Path(tmp) / f"w{w}", overwrite=True, workers=w)
+                best[w] = max(best.get(w, 0.0), r.n_frames / (time.perf_counter() - t0))
+    return best
+
+
+def session_stages(seed: int = 0, every: int = 4) -> tuple[dict[str, float], int]:
+    """CPU ms per frame of each stage of the default session's frames (one thread)."""
+    from gaitnet.config import load_config
+    from gaitnet.io.images import depth_to_units, encode_png
+    from gaitnet.sim.config import SimConfig
+    from gaitnet.sim.render_motion import Motion
+    from gaitnet.sim.scene_setup import build_scene, rng_streams
+    from gaitnet.sim.sensor_depth import depth_image
+    from gaitnet.sim.sensor_model import _colour
+    from gaitnet.sim.session import marker_pixel_checks
+
+    cfg = load_config(SimConfig, ROOT / "configs" / "sim" / "default.yaml")
+    scene = build_scene(cfg, rng_streams(seed))
+    cam = cfg.camera
+    K = cam.intrinsics().K
+    times = np.arange(0.05, scene.walk.duration_s - 0.05, 1 / cam.fps)[::every]
+    T_all = scene.T_WfromC(times)
+    exposure = 1.0
+    acc: dict[str, float] = {}
+
+    def lap(name: str, t0: float) -> float:
+        t1 = time.thread_time()
+        acc[name] = acc.get(name, 0.0) + t1 - t0
+        return t1
+
+    for k, t in enumerate(times):
+        t_exp = cam.exposure_time_s(exposure)
+        t0 = time.thread_time()
+        body = scene.walk.body_state(t)
+        t0 = lap("body state", t0)
+        t_end = t + t_exp / 2
+        motion = Motion(T_all[k], body, scene.T_WfromC(np.array([t_end]))[0],
+                        scene.walk.body_state(t_end))  # fmt: skip
+        lap("blur: end-of-exposure state", t0)
+        stages: dict[str, float] = {}
+        res = render_frame(K, cam.width, cam.height, T_all[k], scene.floor, body,
+                           scene.appearance, scene.clutter, scene.light, timings=stages,
+                           relief=scene.relief, motion=motion)  # fmt: skip
+        for name, sec in stages.items():
+            acc[f"render {name}"] = acc.get(f"render {name}", 0.0) + sec
+        t0 = time.thread_time()
+        exposure = auto_exposure(res.rgb_linear) * scene.exposure_gain
+        t0 = lap("auto-exposure", t0)
+        rgb = _colour(res.rgb_linear, K, np.random.default_rng(k), cfg.sensor, exposure)
+        t0 = lap("sensor colour", t0)
+        depth = depth_image(res, K, np.random.default_rng(k), cfg.sensor, scene.depth_unit)
+        t0 = lap("sensor depth", t0)
+        marker_pixel_checks(scene.walk, t, T_all[k], K, res.depth_m, res.label, res.instance)
+        t0 = lap("marker checks", t0)
+        encode_png(rgb)
+        t0 = lap("PNG colour", t0)
+        encode_png(depth_to_units(depth, 0.001))
+        t0 = lap("PNG depth", t0)
+        encode_png(res.label)
+        encode_png(res.instance)
+        lap("PNG labels + instances", t0)
+    n = len(times)
+    return {name: 1000 * sec / n for name, sec in acc.items()}, n
+
+
+def session_main(args: argparse.Namespace) -> None:
+    stages, n = session_stages(args.seed)
+    print(f"default session, where the time goes (CPU ms/frame on one thread, {n} frames):")
+    for name, ms in stages.items():
+        print(f"  {name:30s} {ms:6.1f}")
+    print(f"  {'total':30s} {sum(stages.values()):6.1f}")
+    speed = session_speed(tuple(args.workers), args.repeat, args.seed)
+    for w, fps in speed.items():
+        print(f"default session end to end, {w} worker(s): {fps:5.1f} frames/s "
+              f"(best of {args.repeat}; {os.cpu_count()} CPUs)")  # fmt: skip
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--session", action="store_true", help="the whole default session")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--frames", type=int, default=30)
     ap.add_argument("--family", default="tiles")
     ap.add_argument("--pitch", type=float, default=50.0)
@@ -119,6 +223,9 @@ def main() -> None:
     ap.add_argument("--out", default="docs/img/render_example.png")
     args = ap.parse_args()
     cv2.setNumThreads(1)
+    if args.session:
+        session_main(args)
+        return
 
     t0 = time.perf_counter()
     floor, clutter = build_world(args.family, args.seed)

@@ -28,9 +28,11 @@ from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
+import realism_blur  # noqa: E402
 import realism_depth  # noqa: E402
 import realism_gait  # noqa: E402
 import realism_imu  # noqa: E402
+import realism_tags  # noqa: E402
 
 from gaitnet.config import load_config  # noqa: E402
 from gaitnet.geometry import backproject  # noqa: E402
@@ -181,6 +183,8 @@ def main() -> None:
     realism_gait.report(realism_gait.measure(seed=args.seed))  # gait values vs speed
     realism_depth.report(realism_depth.measure())  # depth error vs distance, plane fit
     realism_imu.main(seeds=2)  # shocks, wobble, IMU errors, frame timing, strapdown
+    realism_tags.report()  # tags decoded at 640×480 / 1280×800, area-sampling check
+    realism_blur.report()  # blur length vs image speed × exposure time
 
     cfg = load_config(SimConfig, ROOT / "configs" / "sim" / "default.yaml")
     start = time.perf_counter()
