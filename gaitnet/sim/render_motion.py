@@ -99,12 +99,13 @@ def _body_points_end(p_W: np.ndarray, label: NDArray, instance: NDArray, m: Moti
 
 
 def _line_kernel(d: np.ndarray) -> np.ndarray:
-    """Normalised kernel of a uniform line of displacement ``d`` (dx, dy) [px], centred."""
-    r = int(np.ceil(max(abs(d[0]), abs(d[1])) / 2)) + 1
+    """Normalised kernel of a uniform line of displacement ``d`` (dx, dy) [px], centred; the
+    kernel is only as large as the line's bounding box (filter2D's cost is its area)."""
+    rx, ry = int(np.ceil(abs(d[0]) / 2)) + 1, int(np.ceil(abs(d[1]) / 2)) + 1
     n = max(2, int(np.ceil(np.hypot(*d) / 0.5)) + 1)
-    k = np.zeros((2 * r + 1, 2 * r + 1), np.float32)
+    k = np.zeros((2 * ry + 1, 2 * rx + 1), np.float32)
     s = np.linspace(-0.5, 0.5, n)
-    x, y = r + s * d[0], r + s * d[1]
+    x, y = rx + s * d[0], ry + s * d[1]
     x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
     fx, fy = x - x0, y - y0
     for wx, dx in ((1 - fx, 0), (fx, 1)):
