@@ -66,6 +66,7 @@ STREAMS = (
     "frame_timing",  # frame timestamp jitter and dropped frames
     "floor_relief",  # the floor's millimetre relief (floor_relief)
     "depth",  # the depth camera unit's fixed errors and per-frame depth noise (sensor_depth)
+    "sway",  # postural sway of the pelvis while standing (gait_style)
 )
 SEED_LIMIT = 2**32  # seeds are 0 ≤ seed < 2**32 (the command line promises 32 bits)
 ROOM_HEIGHT_M = 2.8
@@ -236,7 +237,7 @@ def build_scene(cfg: SimConfig, rngs: dict[str, np.random.Generator]) -> SimScen
     acts here."""
     sc = cfg.subject
     subject = sample_subject(rngs["subject"], sc.height_range_m, sc.height_m)
-    walk = generate_walk(subject, cfg.gait, rngs["gait"])
+    walk = generate_walk(subject, cfg.gait, rngs["gait"], sway_rng=rngs["sway"])
 
     room_rng = rngs["room"]
     family = cfg.scene.floor_family
