@@ -341,3 +341,36 @@ def test_sensor_keys_shape_the_delivered_images() -> None:
     blue = render(tiny("sensor.white_balance=[1, 1, 0.3]")).rgb.reshape(-1, 3).mean(0)
     neutral = render(tiny()).rgb.reshape(-1, 3).mean(0)
     assert blue[2] / blue[0] < 0.8 * neutral[2] / neutral[0]
+
+
+#: Keys added by the realism pass, each with a valid value other than its default. Each must
+#: change what a data-set frame delivers (colour, depth or labels) or be refused above.
+REALISM_KEYS = [
+    "camera.motion_blur=false", "camera.exposure_time_ref_s=0.03",
+    "camera.exposure_time_range_s=[0.001, 0.002]",
+    "floor_relief.slope_deg=1.5", "floor_relief.waviness_mm=4", "floor_relief.lip_mm=2.5",
+    "mount.impact_peak_g=5", "mount.impact_freq_hz=8", "mount.impact_damping_ratio=0.9",
+    "mount.wobble_freq_hz=1.5", "mount.wobble_damping_ratio=0.9", "mount.wobble_gain=1",
+    "mount.wobble_tilt_deg_per_mm=3",
+    "gait.variability=0", "gait.stand_width_m=0.35", "gait.toe_off_ankle_deg=-25",
+    "gait.push_off_ankle_deg=-29", "gait.swing_ankle_deg=12", "gait.sway_ap_rms_m=0.015",
+    "gait.sway_ml_rms_m=0.015",
+    "sensor.correlated_fraction=0", "sensor.match_window_px=21", "sensor.disparity_offset_px=0.8",
+    "sensor.waviness_px=0.4", "sensor.subpixel_steps=4", "sensor.flying_fraction=1",
+    "sensor.dark_radiance=0.5", "sensor.glare_radiance=0.6", "sensor.dark_hole_prob=0",
+    "sensor.hole_cluster_px=40",
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("override", REALISM_KEYS)
+def test_realism_keys_act_on_dataset_frames(override: str) -> None:
+    common = ["scene.floor_family=tiles"] if "lip_mm" in override else []  # joints: tiles, wood
+    base = [render(tiny(*common), index=i) for i in range(2)]
+    changed = [render(tiny(*common, override), index=i) for i in range(2)]
+    differs = any(
+        not np.array_equal(a.rgb, b.rgb)
+        or not np.array_equal(a.depth_m, b.depth_m)
+        or not np.array_equal(a.render.label, b.render.label)
+        for a, b in zip(base, changed, strict=True)
+    )
+    assert differs, f"{override} does not change any data-set frame"

@@ -165,6 +165,9 @@ def simulate_frame(
     T_WfromC = scene.T_WfromC(np.array([t]))[0]
     result = scene.render(cfg.camera, t, T_WfromC)
     exposure = auto_exposure(result.rgb_linear) * scene.exposure_gain
+    exposure_s = cfg.camera.exposure_time_s(exposure)
+    if exposure_s > 0:  # motion blur over the exposure time that brightness asks for
+        result = scene.render(cfg.camera, t, T_WfromC, exposure_s)
     K = cfg.camera.intrinsics().K
     rgb, depth = apply_sensor(
         result, K, rngs["sensor"], cfg.sensor, exposure, rngs["depth"], scene.depth_unit
