@@ -61,7 +61,7 @@ def test_sheet_is_area_sampled_like_a_downsampled_native_frame() -> None:
 
 
 def test_sheet_reflectance_is_paper_and_toner(standing) -> None:
-    from gaitnet.sim.floor import INK_REFLECTANCE, PAPER_REFLECTANCE
+    from gaitnet.sim.tag_sheet import INK_REFLECTANCE, PAPER_REFLECTANCE
 
     level0 = standing.scene.floor.sheets[0].levels[0]
     assert np.percentile(level0, 99) == pytest.approx(PAPER_REFLECTANCE, rel=0.08)

@@ -15,11 +15,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from gaitnet.checks import check_each, check_int_range, check_range
-from gaitnet.sim.floor import COARSEST_TEXEL_M, FLOOR_FAMILIES, MAX_TEXTURE_SIDE
+from gaitnet.sim.floor import FLOOR_FAMILIES, MAX_TEXTURE_SIDE
 from gaitnet.sim.floor_relief import FloorReliefConfig
 from gaitnet.sim.frame_timing import FrameTimingConfig
 from gaitnet.sim.gait import GaitConfig
 from gaitnet.sim.imu import ImuConfig
+from gaitnet.sim.mipmap import COARSEST_TEXEL_M
 from gaitnet.sim.rig import CameraConfig, MountConfig
 from gaitnet.sim.sensor_model import SensorNoiseConfig
 

@@ -21,11 +21,13 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from gaitnet.sim.floor import FloorTexture, TagSheet, sample_mipmapped
+from gaitnet.sim.floor import FloorTexture
 from gaitnet.sim.floor_relief import FloorRelief
+from gaitnet.sim.mipmap import sample_mipmapped
 from gaitnet.sim.render_color import decode_srgb8
 from gaitnet.sim.render_prims import screen_bbox
 from gaitnet.sim.render_types import F32, Lighting, Rays, camera_rays, low_res_K
+from gaitnet.sim.tag_sheet import TagSheet
 
 LOW_RES = 4
 LOD_BIAS = 0.35  # between the geometric mean and the major axis of the pixel footprint

@@ -1,0 +1,130 @@
+"""AprilTag sheets: A3 paper with a grid of tag36h11 tags, as high-resolution floor decals.
+
+A :class:`TagSheet` is stored at 0.5 mm texels (:data:`SHEET_TEXEL_M`) so the tag cells stay
+sharp whatever the floor's texel size, as linear reflectance (float32) so that every average
+taken over it — the mip levels and the renderer's average over each pixel's footprint — is an
+average of light, as a camera pixel takes it (averaging sRGB codes darkens every mixed texel).
+The renderer composites the sheets over the floor (:mod:`gaitnet.sim.render_env`).
+
+The tag corner convention is :class:`gaitnet.io.types.AprilTagBoard`'s
+(:func:`gaitnet.io.types.tag_corners_in_board`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from gaitnet.io.types import AprilTagBoard
+from gaitnet.sim.mipmap import build_pyramid
+
+Extent = tuple[tuple[float, float], tuple[float, float]]
+
+A3_PAPER_M = (0.420, 0.297)
+SHEET_TEXEL_M = 0.0005
+# Matte laser print on white office paper: paper ~80 % diffuse reflectance, black toner ~5 %
+# (docs/references.md, "Simulator realism: rendering"); the paper's slight warm tint is kept.
+PAPER_REFLECTANCE = 0.80
+INK_REFLECTANCE = 0.05
+PAPER_TINT = (1.0, 0.99, 0.95)
+
+
+@dataclass(frozen=True, eq=False)
+class TagSheet:
+    """A printed sheet (decal) lying on the floor, in its board frame (see module docstring).
+
+    ``levels`` is a pyramid of linear reflectance (float32, single channel; the colour is
+    reflectance × ``tint``); ``levels[0]`` row ``i`` covers board ``y ∈ y1 - [i, i+1]·τ`` and
+    column ``j`` covers ``x ∈ x0 + [j, j+1]·τ`` (the page as seen from above),
+    ``(x0, x1), (y0, y1) = extent_b``.
+    """
+
+    name: str
+    T_WfromBoard: np.ndarray
+    extent_b: Extent
+    texel_m: float
+    levels: tuple[NDArray[np.float32], ...]
+    tint: tuple[float, float, float] = PAPER_TINT
+
+
+def _sheet_extent(board: AprilTagBoard, margin_m: float = 0.01) -> Extent:
+    """A3 paper centred on the tag grid (long side along the longer grid side)."""
+    s, g = board.tag_size_m, board.gap_m
+    gw = board.cols * s + (board.cols - 1) * g
+    gh = board.rows * s + (board.rows - 1) * g
+    long_, short = A3_PAPER_M
+    pw, ph = (long_, short) if gw >= gh else (short, long_)
+    pw, ph = max(pw, gw + 2 * margin_m), max(ph, gh + 2 * margin_m)
+    return ((gw - pw) / 2, (gw + pw) / 2), ((gh - ph) / 2, (gh + ph) / 2)
+
+
+def _overlap(starts_tex: np.ndarray, tau: float, cell_starts: np.ndarray, w: float) -> np.ndarray:
+    """Fraction of each texel interval ``[a, a+τ]`` covered by each cell ``[c, c+w]``."""
+    a = starts_tex[:, None]
+    c = cell_starts[None, :]
+    return np.clip(np.minimum(a + tau, c + w) - np.maximum(a, c), 0.0, None) / tau
+
+
+def _marker_bits(tag_id: int) -> np.ndarray:
+    """8×8 cells of a tag36h11 marker (1 = black), rows top to bottom as read."""
+    dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
+    if not 0 <= tag_id < dictionary.bytesList.shape[0]:
+        raise ValueError(f"tag36h11 has no id {tag_id}")
+    img = cv2.aruco.generateImageMarker(dictionary, tag_id, 8, borderBits=1)
+    return (img < 128).astype(np.float64)
+
+
+def _sheet_blackness(board: AprilTagBoard, extent: Extent, tau: float) -> np.ndarray:
+    """Exact box-filtered ink coverage of each sheet texel (rows along −y_b)."""
+    (x0, x1), (y0, y1) = extent
+    w, h = round((x1 - x0) / tau), round((y1 - y0) / tau)
+    ink = np.zeros((h, w))
+    cell = board.tag_size_m / 8
+    for k in range(board.rows * board.cols):
+        tag_id = board.first_id + k
+        cx, cy, _ = board.tag_centre_in_board(tag_id)
+        half = board.tag_size_m / 2
+        c0, c1 = int((cx - half - x0) / tau) - 1, int((cx + half - x0) / tau) + 2
+        r0, r1 = int((y1 - cy - half) / tau) - 1, int((y1 - cy + half) / tau) + 2
+        c0, r0, c1, r1 = max(c0, 0), max(r0, 0), min(c1, w), min(r1, h)
+        tex_x = x0 + np.arange(c0, c1) * tau
+        tex_ny = -(y1 - np.arange(r0, r1) * tau)  # texel rows as intervals of −y
+        cells_x = cx - half + np.arange(8) * cell
+        cells_ny = -(cy + half) + np.arange(8) * cell  # marker row k spans −y ∈ [.., .. + cell]
+        Ox = _overlap(tex_x, tau, cells_x, cell)
+        Oy = _overlap(tex_ny, tau, cells_ny, cell)
+        ink[r0:r1, c0:c1] += Oy @ _marker_bits(tag_id) @ Ox.T
+    return np.clip(ink, 0.0, 1.0)
+
+
+def _check_board_on_floor(board: AprilTagBoard) -> np.ndarray:
+    T = np.asarray(board.T_WfromBoard, dtype=np.float64)
+    if T.shape != (4, 4):
+        raise ValueError(f"board {board.name!r}: T_WfromBoard must be 4x4")
+    if abs(T[2, 3]) > 0.01 or T[2, 2] < 0.999:
+        raise ValueError(
+            f"board {board.name!r} must lie face up on the floor (board z = world z, height 0); "
+            f"got z axis {T[:3, 2].round(3).tolist()} and height {T[2, 3]:.3f} m"
+        )
+    if board.family.replace("_", "").lower() not in ("tag36h11", "apriltag36h11"):
+        raise ValueError(f"board {board.name!r}: only tag36h11 is rendered, got {board.family!r}")
+    return T
+
+
+def make_tag_sheet(
+    board: AprilTagBoard, rng: np.random.Generator, texel_m: float = SHEET_TEXEL_M
+) -> TagSheet:
+    """Render ``board`` as an A3 sheet of white paper with its tags (module docstring frames):
+    linear reflectance, exact box-filtered ink coverage per texel."""
+    T = _check_board_on_floor(board)
+    extent = _sheet_extent(board)
+    ink = _sheet_blackness(board, extent, texel_m).astype(np.float32)
+    shape = ink.shape
+    paper = np.float32(PAPER_REFLECTANCE * rng.uniform(0.95, 1.05))
+    grain = 1.0 + 0.01 * cv2.GaussianBlur(rng.standard_normal(shape, np.float32), (0, 0), 3.0) * 6
+    reflectance = paper * grain * (1 - ink) + np.float32(INK_REFLECTANCE) * ink
+    levels = build_pyramid(reflectance.astype(np.float32), texel_m)
+    return TagSheet(board.name, T, extent, texel_m, levels)
