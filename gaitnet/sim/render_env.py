@@ -27,7 +27,7 @@ from gaitnet.sim.mipmap import sample_mipmapped
 from gaitnet.sim.render_color import decode_srgb8
 from gaitnet.sim.render_prims import screen_bbox
 from gaitnet.sim.render_types import F32, Lighting, Rays, camera_rays, low_res_K
-from gaitnet.sim.tag_sheet import TagSheet
+from gaitnet.sim.tag_sheet import sheet_overlay
 
 LOW_RES = 4
 LOD_BIAS = 0.35  # between the geometric mean and the major axis of the pixel footprint
@@ -283,69 +283,6 @@ def _floor_specular(co: _Coarse, floor: FloorTexture, light: Lighting) -> F32:
 # ----------------------------------------------------------------------------- tag sheets
 
 
-SHEET_SUPERSAMPLE = 4  # sub-pixel samples per pixel side on the tag sheets (4 × 4 per pixel)
-
-
-def _board_homography(cam: _Camera, T_WfromBoard: np.ndarray) -> np.ndarray:
-    """3×3 map from pixel ``(u, v, 1)`` to board-plane ``(x_b, y_b, 1)`` (up to scale) of a
-    sheet lying in its board's z = 0 plane."""
-    T = cam.T_CfromW @ T_WfromBoard
-    H_pix_from_board = cam.K @ np.stack([T[:3, 0], T[:3, 1], T[:3, 3]], axis=1)
-    return np.linalg.inv(H_pix_from_board)
-
-
-def _sheet_overlay(
-    cam: _Camera, sheet: TagSheet, reg: tuple[slice, slice], lod: F32, floor_texel: float,
-    light_rgb: tuple,
-) -> tuple[F32, F32]:  # fmt: skip
-    """Linear colour of ``sheet`` over the pixel region ``reg`` and the fraction of each pixel
-    it covers, both averaged over each pixel's footprint.
-
-    A camera pixel integrates the printed pattern over its area (box filter): the region is
-    sampled on a grid of :data:`SHEET_SUPERSAMPLE` × :data:`SHEET_SUPERSAMPLE` sub-pixel
-    points mapped exactly onto the sheet (a homography, so perspective is exact inside the
-    pixel); each point reads the sheet's linear-reflectance pyramid at the level of detail of
-    its own sub-pixel footprint, and the samples are averaged (``cv2.INTER_AREA``), which is
-    what the sensor integrates. The previous renderer read one point per pixel from an sRGB
-    pyramid at a biased, blurrier level, which turned the tags' black borders mid-grey at
-    640×480.
-    """
-    n = SHEET_SUPERSAMPLE
-    rv, ru = reg
-    h, w = rv.stop - rv.start, ru.stop - ru.start
-    sub = (np.arange(n, dtype=np.float64) + 0.5) / n - 0.5
-    us = (ru.start + np.arange(w)[:, None] + sub[None, :]).ravel()
-    vs = (rv.start + np.arange(h)[:, None] + sub[None, :]).ravel()
-    H = _board_homography(cam, sheet.T_WfromBoard)
-    (sx0, sx1), (sy0, sy1) = sheet.extent_b
-    inv = 1.0 / sheet.texel_m
-    # pixel -> texel column / row, both linear in (u, v, 1) up to the common denominator
-    A = np.array([[inv, 0.0, -sx0 * inv - 0.5], [0.0, -inv, sy1 * inv - 0.5], [0.0, 0.0, 1.0]])
-    M = A @ H
-    cu = (M[:, 0:1] * us[None, :]).astype(np.float32)  # (3, w n)
-    cv_ = (M[:, 1:2] * vs[None, :] + M[:, 2:3]).astype(np.float32)  # (3, h n)
-    den = cv_[2][:, None] + cu[2][None, :]
-    front = den > 0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rden = np.where(front, np.float32(1.0) / den, np.float32(0.0))
-    col = (cv_[0][:, None] + cu[0][None, :]) * rden
-    row = (cv_[1][:, None] + cu[1][None, :]) * rden
-    nx, ny = sheet.levels[0].shape[1], sheet.levels[0].shape[0]
-    inside = front & (col >= -0.5) & (col <= nx - 0.5) & (row >= -0.5) & (row <= ny - 0.5)
-    col[~inside] = -1.0
-    row[~inside] = -1.0
-    # per-pixel level of detail of the floor -> of the sheet, minus the sub-sampling
-    slod = lod - np.float32(LOD_BIAS + np.log2(n) - np.log2(floor_texel / sheet.texel_m))
-    slod = cv2.resize(slod, (w * n, h * n), interpolation=cv2.INTER_NEAREST)
-    refl = sample_mipmapped(sheet.levels, col, row, slod, border=cv2.BORDER_REPLICATE)
-    refl *= inside
-    mean = cv2.resize(refl, (w, h), interpolation=cv2.INTER_AREA)
-    cover = cv2.resize(inside.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
-    mean /= np.maximum(cover, np.float32(1e-6))
-    tint = np.asarray(sheet.tint, np.float32) * np.asarray(light_rgb, np.float32)
-    return mean[..., None] * tint, cover
-
-
 def _composite_sheets(
     cam: _Camera, floor: FloorTexture, t: F32, lod: F32, albedo: F32, light_rgb: tuple
 ) -> None:
@@ -356,7 +293,9 @@ def _composite_sheets(
         reg = cam.floor_bbox(corners_b @ sheet.T_WfromBoard[:3, :3].T + sheet.T_WfromBoard[:3, 3])
         if reg is None:
             continue
-        colour, cover = _sheet_overlay(cam, sheet, reg, lod[reg], floor.texel_m, light_rgb)
+        colour, cover = sheet_overlay(
+            sheet, cam.K, cam.T_CfromW, reg, lod[reg], LOD_BIAS, floor.texel_m, light_rgb
+        )
         cover *= np.isfinite(t[reg])
         part = albedo[reg]
         part += (colour - part) * cover[..., None]

@@ -4,7 +4,8 @@ A :class:`TagSheet` is stored at 0.5 mm texels (:data:`SHEET_TEXEL_M`) so the ta
 sharp whatever the floor's texel size, as linear reflectance (float32) so that every average
 taken over it — the mip levels and the renderer's average over each pixel's footprint — is an
 average of light, as a camera pixel takes it (averaging sRGB codes darkens every mixed texel).
-The renderer composites the sheets over the floor (:mod:`gaitnet.sim.render_env`).
+The renderer composites the sheets over the floor (:mod:`gaitnet.sim.render_env`) with
+:func:`sheet_overlay`, the camera's integral of the printed pattern over each pixel.
 
 The tag corner convention is :class:`gaitnet.io.types.AprilTagBoard`'s
 (:func:`gaitnet.io.types.tag_corners_in_board`).
@@ -19,9 +20,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gaitnet.io.types import AprilTagBoard
-from gaitnet.sim.mipmap import build_pyramid
+from gaitnet.sim.mipmap import build_pyramid, sample_mipmapped
 
 Extent = tuple[tuple[float, float], tuple[float, float]]
+F32 = NDArray[np.float32]
 
 A3_PAPER_M = (0.420, 0.297)
 SHEET_TEXEL_M = 0.0005
@@ -128,3 +130,71 @@ def make_tag_sheet(
     reflectance = paper * grain * (1 - ink) + np.float32(INK_REFLECTANCE) * ink
     levels = build_pyramid(reflectance.astype(np.float32), texel_m)
     return TagSheet(board.name, T, extent, texel_m, levels)
+
+
+# ----------------------------------------------------------------------------- rendering
+
+
+SHEET_SUPERSAMPLE = 4  # sub-pixel samples per pixel side on the tag sheets (4 × 4 per pixel)
+
+
+def board_homography(K: np.ndarray, T_CfromW: np.ndarray, T_WfromBoard: np.ndarray) -> np.ndarray:
+    """3×3 map from pixel ``(u, v, 1)`` to board-plane ``(x_b, y_b, 1)`` (up to scale) of a
+    sheet lying in its board's z = 0 plane, for a camera ``K``, ``T_CfromW``."""
+    T = T_CfromW @ T_WfromBoard
+    H_pix_from_board = K @ np.stack([T[:3, 0], T[:3, 1], T[:3, 3]], axis=1)
+    return np.linalg.inv(H_pix_from_board)
+
+
+def sheet_overlay(
+    sheet: TagSheet, K: np.ndarray, T_CfromW: np.ndarray, reg: tuple[slice, slice], lod: F32,
+    lod_bias: float, floor_texel: float, light_rgb: tuple,
+) -> tuple[F32, F32]:  # fmt: skip
+    """Linear colour of ``sheet`` over the pixel region ``reg`` and the fraction of each pixel
+    it covers, both averaged over each pixel's footprint. ``lod`` is the floor's per-pixel
+    level of detail over ``reg``, ``lod_bias`` the renderer's bias of it, ``floor_texel`` the
+    floor's texel size [m].
+
+    A camera pixel integrates the printed pattern over its area (box filter): the region is
+    sampled on a grid of :data:`SHEET_SUPERSAMPLE` × :data:`SHEET_SUPERSAMPLE` sub-pixel
+    points mapped exactly onto the sheet (a homography, so perspective is exact inside the
+    pixel); each point reads the sheet's linear-reflectance pyramid at the level of detail of
+    its own sub-pixel footprint, and the samples are averaged (``cv2.INTER_AREA``), which is
+    what the sensor integrates. The previous renderer read one point per pixel from an sRGB
+    pyramid at a biased, blurrier level, which turned the tags' black borders mid-grey at
+    640×480.
+    """
+    n = SHEET_SUPERSAMPLE
+    rv, ru = reg
+    h, w = rv.stop - rv.start, ru.stop - ru.start
+    sub = (np.arange(n, dtype=np.float64) + 0.5) / n - 0.5
+    us = (ru.start + np.arange(w)[:, None] + sub[None, :]).ravel()
+    vs = (rv.start + np.arange(h)[:, None] + sub[None, :]).ravel()
+    H = board_homography(K, T_CfromW, sheet.T_WfromBoard)
+    (sx0, sx1), (sy0, sy1) = sheet.extent_b
+    inv = 1.0 / sheet.texel_m
+    # pixel -> texel column / row, both linear in (u, v, 1) up to the common denominator
+    A = np.array([[inv, 0.0, -sx0 * inv - 0.5], [0.0, -inv, sy1 * inv - 0.5], [0.0, 0.0, 1.0]])
+    M = A @ H
+    cu = (M[:, 0:1] * us[None, :]).astype(np.float32)  # (3, w n)
+    cv_ = (M[:, 1:2] * vs[None, :] + M[:, 2:3]).astype(np.float32)  # (3, h n)
+    den = cv_[2][:, None] + cu[2][None, :]
+    front = den > 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rden = np.where(front, np.float32(1.0) / den, np.float32(0.0))
+    col = (cv_[0][:, None] + cu[0][None, :]) * rden
+    row = (cv_[1][:, None] + cu[1][None, :]) * rden
+    nx, ny = sheet.levels[0].shape[1], sheet.levels[0].shape[0]
+    inside = front & (col >= -0.5) & (col <= nx - 0.5) & (row >= -0.5) & (row <= ny - 0.5)
+    col[~inside] = -1.0
+    row[~inside] = -1.0
+    # per-pixel level of detail of the floor -> of the sheet, minus the sub-sampling
+    slod = lod - np.float32(lod_bias + np.log2(n) - np.log2(floor_texel / sheet.texel_m))
+    slod = cv2.resize(slod, (w * n, h * n), interpolation=cv2.INTER_NEAREST)
+    refl = sample_mipmapped(sheet.levels, col, row, slod, border=cv2.BORDER_REPLICATE)
+    refl *= inside
+    mean = cv2.resize(refl, (w, h), interpolation=cv2.INTER_AREA)
+    cover = cv2.resize(inside.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
+    mean /= np.maximum(cover, np.float32(1e-6))
+    tint = np.asarray(sheet.tint, np.float32) * np.asarray(light_rgb, np.float32)
+    return mean[..., None] * tint, cover
