@@ -283,3 +283,25 @@ def test_prepare_script_smoke(tmp_path: Path) -> None:
         text=True,
     )
     assert done.returncode == 1 and done.stderr.startswith("error: ")
+
+
+def test_a_clip_linked_into_the_amass_folder_keeps_its_sub_dataset(tmp_path: Path) -> None:
+    """A symbolic link inside the AMASS folder to a file stored elsewhere belongs to the
+    sub-dataset it is linked under (it used to lose it and land in the train split)."""
+    rng = np.random.default_rng(4)
+    poses, trans = walking_like_clip(60, 60.0, rng)
+    store = write_smplh_poses(tmp_path / "store" / "x_poses.npz", poses, trans, 60.0)
+    root = tmp_path / "amass"
+    linked = root / "BMLrub" / "rub001" / "0001_treadmill_norm_poses.npz"
+    linked.parent.mkdir(parents=True)
+    linked.symlink_to(store)
+    clip = read_amass_npz(linked, amass_root=root)
+    assert clip.dataset == "BMLrub" and clip.name == "BMLrub/rub001/0001_treadmill_norm_poses.npz"
+    assert DatasetSplit().split_of(clip.dataset) == "test"
+    # the root reached through a link of its own names clips the same way
+    root_link = tmp_path / "amass_link"
+    root_link.symlink_to(root)
+    via = read_amass_npz(root_link / "BMLrub" / "rub001" / linked.name, amass_root=root_link)
+    assert via.dataset == "BMLrub"
+    # a file outside the root has no sub-dataset
+    assert read_amass_npz(store, amass_root=root).dataset == ""

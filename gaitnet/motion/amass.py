@@ -33,6 +33,7 @@ MPI_HDM05 (HDM05), SFU, MPI_mosh (MoSh); training = every other sub-dataset.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path, PurePosixPath
@@ -155,14 +156,26 @@ def _pose_columns(path: Path, key: str, a: np.ndarray, first_joint: int, n_rows:
 
 
 def _names(path: Path, amass_root: str | Path | None) -> tuple[str, str]:
+    """The clip's name (its path under the root) and sub-dataset (the first folder of it).
+
+    The path is taken as listed under the root, symbolic links NOT followed: a clip that is a
+    link inside the AMASS folder (to a file stored elsewhere) keeps the sub-dataset of where
+    it is linked, so it lands in that sub-dataset's split. Only a path outside the root (also
+    after resolving links) has no sub-dataset.
+    """
     if amass_root is None:
         return path.name, ""
-    try:
-        rel = path.resolve().relative_to(Path(amass_root).resolve())
-    except ValueError:
-        return path.name, ""
-    parts = PurePosixPath(rel.as_posix()).parts
-    return rel.as_posix(), (parts[0] if len(parts) > 1 else "")
+    for here, root in (
+        (Path(os.path.abspath(path)), Path(os.path.abspath(amass_root))),
+        (path.resolve(), Path(amass_root).resolve()),
+    ):
+        try:
+            rel = here.relative_to(root)
+        except ValueError:
+            continue
+        parts = PurePosixPath(rel.as_posix()).parts
+        return rel.as_posix(), (parts[0] if len(parts) > 1 else "")
+    return path.name, ""
 
 
 def read_amass_npz(path: str | Path, *, amass_root: str | Path | None = None) -> MotionClip:
