@@ -8,7 +8,11 @@ inputs allow, in SI units:
   [0, 1, 2, 4, 5, 7, 8, 10, 11]); the mean over matched frames of the 7 lower-body joints
   (pelvis, hips, knees, ankles), eq. (4.5), :func:`gaitnet.evaluation.metrics.mpjpe`;
 - ``body_ate_m`` from ``RESULT_DIR/camera_frames.tum``: RMS camera-position error after a
-  yaw + translation alignment to ``groundtruth/camera_frames.tum``.
+  yaw + translation alignment to ``groundtruth/camera_frames.tum``;
+- ``stride_rmse_m`` {left, right, all}, ``stride_max_err_m`` {left, right} and ``n_strides``
+  {left, right} from ``RESULT_DIR/strides.csv`` against ``groundtruth/strides.csv``: strides
+  matched in time, the unmatched ones counted in ``counts``
+  (:mod:`gaitnet.evaluation.strides`).
 
 More keys (strides, foot trajectories, segmentation) join as the stages producing them land.
 
@@ -31,14 +35,23 @@ import numpy as np
 
 from gaitnet.errors import GaitnetError, InputError, SessionError
 from gaitnet.evaluation.metrics import ate_yaw_aligned, match_times, mpjpe
+from gaitnet.evaluation.strides import read_strides, stride_metrics
 from gaitnet.io.atomic import atomic_write_text
 from gaitnet.io.npz import npz_array, open_npz
 from gaitnet.io.trajectory import read_tum
 
-__all__ = ["JOINTS_FILE", "TRAJECTORY_FILE", "ResultEvaluation", "evaluate_result", "write_report"]
+__all__ = [
+    "JOINTS_FILE",
+    "STRIDES_FILE",
+    "TRAJECTORY_FILE",
+    "ResultEvaluation",
+    "evaluate_result",
+    "write_report",
+]
 
 JOINTS_FILE = "joints.npz"
 TRAJECTORY_FILE = "camera_frames.tum"
+STRIDES_FILE = "strides.csv"
 LOWER_BODY = slice(0, 7)  # rows of the 9-joint arrays that are the 7-joint lower body
 _N_JOINTS = 9
 
@@ -48,7 +61,7 @@ class ResultEvaluation:
     """Metrics of one result folder against a session's ground truth (finite SI values) and
     how many frames/poses each was computed from; :meth:`to_json` is the contract JSON."""
 
-    metrics: dict[str, float] = field(default_factory=dict)
+    metrics: dict[str, float | dict[str, float]] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=dict)
 
     def to_json(self) -> str:
@@ -113,7 +126,7 @@ def evaluate_result(result_dir: str | Path, session_dir: str | Path) -> ResultEv
         raise SessionError(f"{session_dir}: session folder not found")
     if not gt.is_dir():
         raise SessionError(f"{gt}: no ground truth (only simulated sessions have it)")
-    metrics: dict[str, float] = {}
+    metrics: dict[str, float | dict[str, float]] = {}
     counts: dict[str, int] = {}
     joints = result_dir / JOINTS_FILE
     if joints.exists():
@@ -137,9 +150,17 @@ def evaluate_result(result_dir: str | Path, session_dir: str | Path) -> ResultEv
             value = ate_yaw_aligned(p_est[i], p_ref[j])
         metrics["body_ate_m"] = _finite(trajectory, "ATE", value)
         counts["ate_poses"] = int(len(i))
+    strides = result_dir / STRIDES_FILE
+    if strides.exists():
+        found, unmatched = stride_metrics(
+            read_strides(strides, InputError), read_strides(gt / STRIDES_FILE, SessionError)
+        )
+        metrics.update(found)  # type: ignore[arg-type]
+        counts.update(unmatched)
     if not metrics:
         raise InputError(
-            f"{result_dir}: nothing to evaluate (expected {JOINTS_FILE} and/or {TRAJECTORY_FILE})"
+            f"{result_dir}: nothing to evaluate (expected {JOINTS_FILE}, {TRAJECTORY_FILE} "
+            f"and/or {STRIDES_FILE})"
         )
     return ResultEvaluation(metrics, counts)
 
