@@ -211,7 +211,13 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
     report = evaluate_result(args.result_dir, args.session)
     for key, value in sorted(report.metrics.items()):
-        print(f"{key:14s} {value:.4f}")
+        if isinstance(value, dict):
+            parts = ", ".join(
+                f"{k} {v:.4f}" if isinstance(v, float) else f"{k} {v}" for k, v in value.items()
+            )
+            print(f"{key:16s} {parts}")
+        else:
+            print(f"{key:16s} {value:.4f}")
     if args.json:
         write_report(report, args.json)
         print(f"wrote {args.json}")
@@ -312,12 +318,13 @@ def build_parser() -> argparse.ArgumentParser:
         "evaluate",
         help="compare a result folder with a simulated session's ground truth (JSON metrics)",
         description="Reports the evaluation-contract metric keys the inputs allow: mpjpe_m from "
-        "RESULT_DIR/joints.npz, body_ate_m from RESULT_DIR/camera_frames.tum.",
+        "RESULT_DIR/joints.npz, body_ate_m from RESULT_DIR/camera_frames.tum, stride_rmse_m, "
+        "stride_max_err_m and n_strides from RESULT_DIR/strides.csv.",
     )
     p.add_argument(
         "result_dir",
         metavar="RESULT_DIR",
-        help="folder with results (joints.npz, camera_frames.tum)",
+        help="folder with results (joints.npz, camera_frames.tum, strides.csv)",
     )
     p.add_argument(
         "--session",
