@@ -1,0 +1,10 @@
+"""Errors of the visual-inertial filter."""
+
+from __future__ import annotations
+
+from gaitnet.errors import GaitnetError
+
+
+class FilterDivergedError(GaitnetError):
+    """The filter diverged: a NaN/inf in the nominal state or the covariance, or a covariance
+    that is not symmetric positive semi-definite. The message names the time and what failed."""
