@@ -18,6 +18,7 @@ LAYERS = {
     "io": 2,
     "evaluation": 3,
     "motion": 4,
+    "vio": 4,
     "sim": 5,
     "training": 5,
     "cli": 6,

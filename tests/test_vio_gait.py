@@ -1,0 +1,85 @@
+"""Gait parameters from stance landmarks (gaitnet/vio/gait.py): known answers on a scripted walk."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gaitnet.vio.gait import STRIDE_COLUMNS, Stance, strides_from_stances, summarise
+
+
+def _walk(step_m: float = 0.6, width_m: float = 0.16, step_time_s: float = 0.55, n: int = 8):
+    """Standing stances at t = 0, then alternating steps along +x (right foot first)."""
+    stances = [
+        Stance("left", 0.0, 1.5, np.array([0.0, width_m / 2])),
+        Stance("right", 0.0, 1.6, np.array([0.0, -width_m / 2])),
+    ]
+    for k in range(1, n + 1):
+        side = "right" if k % 2 else "left"
+        y = -width_m / 2 if side == "right" else width_m / 2
+        t = 2.0 + (k - 1) * step_time_s
+        stances.append(Stance(side, t, t + 0.3, np.array([k * step_m, y])))
+    return stances
+
+
+def test_steady_strides_have_the_scripted_lengths_times_and_steps() -> None:
+    strides = strides_from_stances(_walk())
+    steady = [s for s in strides if s.steady]
+    assert len(strides) == 8 and len(steady) == 6  # the first stride of each foot is initiation
+    for s in steady:
+        assert s.length_m == pytest.approx(1.2)
+        assert s.time_s == pytest.approx(1.1)
+        assert s.step_length_m == pytest.approx(0.6)
+        assert s.step_width_m == pytest.approx(0.16)
+        assert s.step_time_s == pytest.approx(0.55)
+        assert s.cadence_spm == pytest.approx(120 / 1.1)
+        assert s.speed_mps == pytest.approx(1.2 / 1.1)
+    first_right = next(s for s in strides if s.side == "right")
+    assert not first_right.steady and first_right.length_m == pytest.approx(0.6)
+    assert set(first_right.row()) == set(STRIDE_COLUMNS)
+
+
+def test_step_direction_follows_the_stride_not_the_world_axes() -> None:
+    R = np.array([[np.cos(0.7), -np.sin(0.7)], [np.sin(0.7), np.cos(0.7)]])
+    rotated = [Stance(s.side, s.t_first_s, s.t_last_s, R @ s.xy + [3.0, -2.0]) for s in _walk()]
+    for a, b in zip(strides_from_stances(_walk()), strides_from_stances(rotated), strict=True):
+        assert b.length_m == pytest.approx(a.length_m)
+        if a.steady:
+            assert b.step_length_m == pytest.approx(a.step_length_m)
+            assert b.step_width_m == pytest.approx(a.step_width_m)
+
+
+def test_summary_means_and_robinson_index() -> None:
+    stances = _walk()
+    stances = [  # the right foot lands 5 cm further ahead: right steps longer, left shorter
+        Stance(
+            s.side,
+            s.t_first_s,
+            s.t_last_s,
+            s.xy + ([0.05, 0] if s.side == "right" and s.t_first_s > 1 else 0),
+        )
+        for s in stances
+    ]
+    summary = summarise(strides_from_stances(stances))
+    assert summary["right"]["n_strides"] == 3 and summary["left"]["n_strides"] == 3
+    assert summary["right"]["step_length_m"]["mean"] == pytest.approx(0.65)
+    assert summary["left"]["step_length_m"]["mean"] == pytest.approx(0.55)
+    assert summary["robinson_symmetry_index_pct"]["step_length_m"] == pytest.approx(200 * 0.1 / 1.2)
+    assert summary["left"]["stride_length_m"]["std"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_a_single_stance_per_side_gives_no_strides_and_empty_statistics() -> None:
+    strides = strides_from_stances(_walk(n=0))
+    assert strides == []
+    assert summarise(strides)["left"]["stride_length_m"] == {}
+
+
+def test_two_stances_of_one_side_at_the_same_time_are_refused() -> None:
+    s = Stance("left", 1.0, 1.2, np.zeros(2))
+    with pytest.raises(ValueError, match="same time"):
+        strides_from_stances([s, Stance("left", 1.0, 1.3, np.ones(2))])
+
+
+def test_the_steadiness_limits_act() -> None:
+    assert sum(s.steady for s in strides_from_stances(_walk(), max_stance_time_s=2.0)) == 8
+    assert sum(s.steady for s in strides_from_stances(_walk(), max_stride_time_s=1.0)) == 0
