@@ -81,5 +81,7 @@ def test_two_stances_of_one_side_at_the_same_time_are_refused() -> None:
 
 
 def test_the_steadiness_limits_act() -> None:
-    assert sum(s.steady for s in strides_from_stances(_walk(), max_stance_time_s=2.0)) == 8
+    # standing stances count once stances may last 2 s, except the left one's 2.55 s stride
+    assert sum(s.steady for s in strides_from_stances(_walk(), max_stance_time_s=2.0)) == 7
+    assert sum(s.steady for s in strides_from_stances(_walk(), 3.0, 2.0)) == 8
     assert sum(s.steady for s in strides_from_stances(_walk(), max_stride_time_s=1.0)) == 0
