@@ -1,0 +1,95 @@
+"""Stance-foot landmark: initialisation (augmentation) and re-observation updates
+(thesis (3.35)–(3.48), corrected per thesis-notes).
+
+A stance foot is a floor point ``L = (x, y, 0)`` in the world (thesis ``r̄_foot``); the
+detector measures it in the camera frame, ``p_FinC`` (thesis ``ŷ_foot``), as a point ON the
+floor plane (thesis-notes: the ellipse centre projected onto the fitted plane, or the camera
+height is biased by the foot's thickness). With ``R = R_WfromI`` (thesis ``C(q)ᵀ``),
+``(R_CI, t_CI) = T_CfromI``::
+
+    p_FinC = R_CI R_ᵀ (L − p_IinW) + t_CI                                   (3.35)
+
+Re-observation (3.45)–(3.48): residual ``p_FinC,meas − p_FinC(x̂)``, Jacobians (ours =
+thesis/2 per attitude column, ``dθ = 2 q̄_e``)::
+
+    ∂/∂dθ = R_CI [(Rᵀ (L − p))×],   ∂/∂δp = −R_CI Rᵀ,   ∂/∂δL = R_CI Rᵀ E12ᵀ
+
+the last placed at the columns of the landmark actually observed (thesis-notes on (3.48)).
+
+Initialisation (3.42)–(3.44): ``L_xy = E12 (p + R p_FinI)`` with ``p_FinI = R_CIᵀ (p_FinC − t_CI)``
+(thesis ``[t_C]_B + C_C^B ŷ_foot``); ``G_X``: ``∂/∂dθ = −E12 R [p_FinI×]`` (the corrected sign of
+(3.42); the printed ``+2`` contradicts (3.44)), ``∂/∂δp = E12``; ``G_y = E12 R R_CIᵀ`` (3.43).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gaitnet.geometry import rotmat_from_quat, skew
+from gaitnet.vio.measurement import Augmentation, Measurement
+from gaitnet.vio.state import FilterState
+
+E12 = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
+
+def foot_predict(
+    q: np.ndarray, p_IinW: np.ndarray, xy: np.ndarray, T_CfromI: np.ndarray
+) -> np.ndarray:
+    """``f_foot`` (3.35): the floor point ``(x, y, 0)`` in the camera frame of the IMU pose
+    ``(q, p_IinW)``."""
+    R_CI, t_CI = T_CfromI[:3, :3], T_CfromI[:3, 3]
+    L = np.array([xy[0], xy[1], 0.0])
+    return R_CI @ rotmat_from_quat(q).T @ (L - p_IinW) + t_CI
+
+
+def foot_measurement(
+    state: FilterState,
+    T_CfromI: np.ndarray,
+    lm_id: int,
+    p_FinC: np.ndarray,
+    R3: np.ndarray,
+) -> Measurement:
+    """Re-observation of landmark ``lm_id`` at ``p_FinC`` (3,) in the current camera frame with
+    noise ``R3`` (3, 3) (thesis ``r_foot I3`` of (3.26)); blocks on ``att``, ``pos`` and
+    ``("lm", lm_id)`` (3.45)–(3.48)."""
+    xy = state.landmarks[lm_id]
+    R_CI = T_CfromI[:3, :3]
+    R = rotmat_from_quat(state.imu.q)
+    A = R_CI @ R.T  # R_CfromW
+    L = np.array([xy[0], xy[1], 0.0])
+    pred = foot_predict(state.imu.q, state.imu.p_IinW, xy, T_CfromI)
+    H = {
+        "att": R_CI @ skew(R.T @ (L - state.imu.p_IinW)),
+        "pos": -A,
+        ("lm", lm_id): A @ E12.T,
+    }
+    return Measurement(
+        np.asarray(p_FinC, dtype=np.float64) - pred,
+        H,
+        np.asarray(R3, dtype=np.float64),
+        f"foot {lm_id}",
+    )
+
+
+def landmark_xy(
+    q: np.ndarray, p_IinW: np.ndarray, p_FinC: np.ndarray, T_CfromI: np.ndarray
+) -> np.ndarray:
+    """(3.44) without errors: the world ``(x, y)`` of the camera-frame floor point ``p_FinC``."""
+    R_CI, t_CI = T_CfromI[:3, :3], T_CfromI[:3, 3]
+    p_FinI = R_CI.T @ (np.asarray(p_FinC, dtype=np.float64) - t_CI)
+    return E12 @ (p_IinW + rotmat_from_quat(q) @ p_FinI)
+
+
+def landmark_from_observation(
+    state: FilterState, T_CfromI: np.ndarray, p_FinC: np.ndarray, R3: np.ndarray
+) -> Augmentation:
+    """A new landmark from its first observation ``p_FinC`` (noise ``R3``): value (3.44), ``G_X``
+    (3.42, corrected sign) on ``att`` and ``pos``, noise ``G_y R3 G_yᵀ`` (3.40), (3.43). Feed it
+    to :func:`gaitnet.vio.covariance.augment_landmark`."""
+    R_CI, t_CI = T_CfromI[:3, :3], T_CfromI[:3, 3]
+    R = rotmat_from_quat(state.imu.q)
+    p_FinI = R_CI.T @ (np.asarray(p_FinC, dtype=np.float64) - t_CI)
+    value = E12 @ (state.imu.p_IinW + R @ p_FinI)
+    G = {"att": -E12 @ R @ skew(p_FinI), "pos": E12.copy()}
+    G_y = E12 @ R @ R_CI.T
+    return Augmentation(value, G, G_y @ np.asarray(R3, dtype=np.float64) @ G_y.T, "foot landmark")
