@@ -14,9 +14,11 @@ and its slow drift; the exposure time is ``camera.exposure_time_s(E)``.
 Because of that latency, :data:`AE_LATENCY` frames can be rendered at once, each in its own
 worker process (``workers``); every frame draws its noise from its own generators (children of
 the ``sensor`` and ``depth`` streams, one per frame), so the output is byte-identical whatever
-the number of workers and their timing. Worker processes are started with ``spawn``: a
-script that calls :func:`gaitnet.sim.session.simulate_session` with workers must guard its
-top level with ``if __name__ == "__main__":`` (Python's rule for ``spawn``).
+the number of workers and their timing. Worker processes are forked from a ``forkserver``
+that has imported the simulator once (``spawn`` where there is none), so they start in
+milliseconds instead of importing it each; as with ``spawn``, a script that calls
+:func:`gaitnet.sim.session.simulate_session` with workers must guard its top level with
+``if __name__ == "__main__":``.
 """
 
 from __future__ import annotations
@@ -134,12 +136,34 @@ def default_workers() -> int:
     return AE_LATENCY if cpus >= 3 else 1
 
 
+def _context() -> multiprocessing.context.BaseContext:
+    """Where worker processes come from: a ``forkserver`` that imported this module (a
+    process forked from this one could hang in OpenCV's thread pool; a ``spawn``-started one
+    spends a second or more importing), else ``spawn``."""
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload([__name__])
+    return ctx
+
+
+def start_workers(workers: int | None = None) -> None:
+    """Start the worker processes' forkserver now when :func:`render_frames` will use one
+    (it imports the simulator meanwhile, on another CPU); optional."""
+    workers = default_workers() if workers is None else int(workers)
+    ctx = _context()
+    if min(workers, AE_LATENCY) > 1 and ctx.get_start_method() == "forkserver":
+        from multiprocessing import forkserver
+
+        forkserver.ensure_running()
+
+
 def render_frames(job: FrameJob, workers: int | None = None) -> Iterator[FrameOut]:
     """All frames of ``job`` in order (module docstring).
 
-    ``workers`` > 1 renders up to :data:`AE_LATENCY` frames at once in ``spawn``-started
-    worker processes (a process started by ``fork`` could hang in OpenCV's thread pool; the
-    job is sent to each once), with the same bytes as 1; None: :func:`default_workers`.
+    ``workers`` > 1 renders up to :data:`AE_LATENCY` frames at once in worker processes
+    (:func:`_context`; the job is sent to each once), with the same bytes as 1; None:
+    :func:`default_workers`.
     """
     n = len(job.times)
     cam = job.cfg.camera
@@ -159,7 +183,7 @@ def render_frames(job: FrameJob, workers: int | None = None) -> Iterator[FrameOu
         for k in range(n):
             yield measured(render_one(job, k, exposure_of(k)))
         return
-    ctx = multiprocessing.get_context("spawn")
+    ctx = _context()
     with ctx.Pool(min(workers, AE_LATENCY), _init_worker, (job,)) as pool:
         pending: deque = deque(
             pool.apply_async(_work, (k, exposure_of(k))) for k in range(min(n, AE_LATENCY))
