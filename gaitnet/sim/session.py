@@ -34,7 +34,7 @@ from gaitnet.sim.groundtruth import GroundTruthWriter
 from gaitnet.sim.imu import draw_imu_calibration, simulate_imu
 from gaitnet.sim.scene import SIDES
 from gaitnet.sim.scene_setup import build_scene, check_seed, rng_streams
-from gaitnet.sim.session_frames import FrameOut, make_job, render_frames
+from gaitnet.sim.session_frames import FrameOut, make_job, render_frames, start_workers
 from gaitnet.sim.subject import Subject
 
 log = logging.getLogger(__name__)
@@ -109,7 +109,7 @@ def simulate_session(
 ) -> SimulationResult:
     """Simulate and write one session; returns where and what (module docstring).
 
-    ``workers``: processes rendering frames (at most 2 at once; None: 2 where 3 or more CPUs
+    ``workers``: processes rendering frames (at most 2 at once; None: 2 where 2 or more CPUs
     are usable, else 1; :mod:`gaitnet.sim.session_frames`); the same bytes for any value.
 
     ``seed``: 0 ≤ seed < 2**32 (else :class:`~gaitnet.errors.InputError`); ``out_dir`` must not
@@ -117,6 +117,7 @@ def simulate_session(
     """
     seed = check_seed(seed)
     out_dir = check_output_folder(out_dir, overwrite)
+    start_workers(workers)  # they get ready on another CPU while the world is built
     rngs = rng_streams(seed)
     scene = build_scene(cfg, rngs)
     walk, subject, family = scene.walk, scene.subject, scene.floor_family

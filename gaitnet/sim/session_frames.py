@@ -27,7 +27,7 @@ import multiprocessing
 import os
 from collections import deque
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -112,28 +112,52 @@ def render_one(job: FrameJob, k: int, exposure: float) -> FrameOut:
     )  # fmt: skip
 
 
+# A worker hands a frame's maps back through one of AE_LATENCY shared buffers (frame k: buffer
+# k % AE_LATENCY, free again once the main process has copied frame k out, which it does
+# before it asks for frame k + AE_LATENCY): ~10× less CPU than sending them through a pipe.
+_MAPS = (("depth_m", 1, np.float32), ("rgb", 3, np.uint8), ("label", 1, np.uint8),
+         ("instance", 1, np.uint8))  # fmt: skip
 _JOB: FrameJob | None = None  # the job of a worker process
+_SLOTS: list = []  # and the shared buffers
 
 
-def _init_worker(job: FrameJob) -> None:
-    global _JOB
+def _slot_size(cam) -> int:
+    return cam.height * cam.width * sum(ch * np.dtype(dt).itemsize for _, ch, dt in _MAPS)
+
+
+def _slot_maps(buf, cam) -> dict[str, np.ndarray]:
+    """The frame maps laid out in one shared buffer (float32 first: aligned)."""
+    maps, offset = {}, 0
+    for name, ch, dt in _MAPS:
+        shape = (cam.height, cam.width, ch)[: 3 if ch > 1 else 2]
+        maps[name] = np.frombuffer(buf, dt, int(np.prod(shape)), offset).reshape(shape)
+        offset += maps[name].nbytes
+    return maps
+
+
+def _init_worker(job: FrameJob, slots: list) -> None:
+    global _JOB, _SLOTS
     cv2.setNumThreads(1)
-    _JOB = job
+    _JOB, _SLOTS = job, slots
 
 
 def _work(k: int, exposure: float) -> FrameOut:
     assert _JOB is not None
-    return render_one(_JOB, k, exposure)
+    out = render_one(_JOB, k, exposure)
+    for name, view in _slot_maps(_SLOTS[k % AE_LATENCY], _JOB.cfg.camera).items():
+        view[...] = getattr(out, name)
+    return replace(out, depth_m=None, rgb=None, label=None, instance=None)  # in the slot
 
 
 def default_workers() -> int:
-    """Worker processes for a session: 2 where at least 3 CPUs are usable (the main process
-    encodes and writes the PNG files meanwhile), else 1 (same bytes either way)."""
+    """Worker processes for a session: 2 where at least 2 CPUs are usable (the main process
+    encodes and writes the PNG files meanwhile, on whichever CPU is free), else 1 (same bytes
+    either way)."""
     try:
         cpus = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
         cpus = os.cpu_count() or 1
-    return AE_LATENCY if cpus >= 3 else 1
+    return AE_LATENCY if cpus >= 2 else 1
 
 
 def _context() -> multiprocessing.context.BaseContext:
@@ -184,12 +208,15 @@ def render_frames(job: FrameJob, workers: int | None = None) -> Iterator[FrameOu
             yield measured(render_one(job, k, exposure_of(k)))
         return
     ctx = _context()
-    with ctx.Pool(min(workers, AE_LATENCY), _init_worker, (job,)) as pool:
+    slots = [ctx.RawArray("B", _slot_size(cam)) for _ in range(AE_LATENCY)]
+    with ctx.Pool(min(workers, AE_LATENCY), _init_worker, (job, slots)) as pool:
         pending: deque = deque(
             pool.apply_async(_work, (k, exposure_of(k))) for k in range(min(n, AE_LATENCY))
         )
         for k in range(n):
-            out = measured(pending.popleft().get())
+            maps = _slot_maps(slots[k % AE_LATENCY], cam)
+            out = pending.popleft().get()
+            out = measured(replace(out, **{name: m.copy() for name, m in maps.items()}))
             if k + AE_LATENCY < n:  # its exposure is known now
                 pending.append(
                     pool.apply_async(_work, (k + AE_LATENCY, exposure_of(k + AE_LATENCY)))
