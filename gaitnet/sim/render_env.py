@@ -416,12 +416,14 @@ def render_environment(
     lod = _lod(co, floor.texel_m, float(c[2]), (width, height))
     rgb = decode_srgb8(sample_mipmapped(floor.levels, mx, my, lod), light.rgb)
     _composite_sheets(cam, floor, depth, lod, rgb, light.rgb)
-    irr = cv2.resize(_floor_irradiance(co, light, shadows, patches), (width, height))
-    np.multiply(rgb, irr[..., None], out=rgb)
-    if floor.gloss > 0:
+    irr = _floor_irradiance(co, light, shadows, patches)
+    irr = cv2.resize(cv2.merge([irr, irr, irr]), (width, height))
+    if floor.gloss > 0:  # rgb · irradiance + the lamps' mirror image, in one pass
         spec = _floor_specular(co, floor, light)[..., None] * np.asarray(light.rgb, np.float32)
         spec = cv2.resize(spec, (width, height))
-        np.add(rgb, spec, out=rgb)
+        rgb = cv2.accumulateProduct(rgb, irr, spec)
+    else:
+        rgb = cv2.multiply(rgb, irr, dst=rgb)
     if not _paint_room(cam, co, floor, light, (depth, rgb, is_floor)):
         sky = ~is_floor
         if sky.any():
