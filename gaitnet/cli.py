@@ -224,6 +224,46 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_vio(args: argparse.Namespace) -> int:
+    from gaitnet.config import dump_config, load_config
+    from gaitnet.io import open_session
+    from gaitnet.io.atomic import check_output_folder
+    from gaitnet.vio.config import VioConfig
+    from gaitnet.vio.report import summary, write_result
+    from gaitnet.vio.run import run_vio
+
+    cfg = load_config(VioConfig, args.config, args.overrides)
+    check_output_folder(args.out, args.overwrite)
+    session = open_session(args.session)
+    result = run_vio(
+        session,
+        cfg,
+        progress=lambda it, total: tqdm(it, total=total, desc="filter", unit="frame"),
+    )
+    out = write_result(result, args.out, dump_config(cfg), overwrite=args.overwrite)
+    info = summary(result)
+    gait = info["gait"]
+    print(f"initialisation: {result.initialisation_note}")
+    print(
+        f"{info['frames']} frames, {info['duration_s']:.1f} s, "
+        f"camera path {info['distance_m']:.2f} m; "
+        f"{len(result.stance_feet)} stance feet, {len(result.strides)} strides"
+    )
+    for side in ("left", "right"):
+        length = gait[side]["stride_length_m"]
+        if length:
+            print(
+                f"{side:5s} stride length {length['mean']:.3f} ± {length['std']:.3f} m over "
+                f"{gait[side]['n_strides']} steady strides"
+            )
+        else:
+            print(f"{side:5s} no steady stride")
+    if info["walking_speed_mps"] is not None:
+        print(f"walking speed {info['walking_speed_mps']:.2f} m/s")
+    print(f"wrote {out} (summary.json, strides.csv, trajectory.png)")
+    return 0
+
+
 def _add_simulator_options(p: argparse.ArgumentParser, out_help: str) -> None:
     """Options shared by the simulator commands: config, overrides, seed, output folder."""
     p.add_argument(
@@ -340,6 +380,22 @@ def build_parser() -> argparse.ArgumentParser:
         help="write the metrics to this JSON file",
     )
     p.set_defaults(func=_cmd_evaluate)
+
+    p = sub.add_parser(
+        "vio",
+        help="visual-inertial filter and smoother: trajectory, stance feet and strides",
+        description="Track the camera with the IMU, RGB-D odometry, AprilTag sheets and "
+        "stance feet (thesis ch. 3), smooth the whole session, and write the trajectory, stance "
+        "feet, strides, a summary and a top-view plot (docs/vio.md).",
+    )
+    p.add_argument("session", metavar="SESSION", help="session folder or RealSense .bag file")
+    p.add_argument("--out", metavar="DIR", type=_output_folder, required=True, help="output folder")
+    p.add_argument(
+        "--config", metavar="FILE", default=None, help="YAML filter config (default: built-in)"
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides")
+    p.set_defaults(func=_cmd_vio)
 
     return parser
 

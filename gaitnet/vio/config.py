@@ -1,0 +1,136 @@
+"""The filter's config (``configs/vio/default.yaml``; every key in docs/configs.md).
+
+Sections: ``imu`` (noise densities), ``init`` (:class:`~gaitnet.vio.initialise.InitParams`),
+``filter`` (which updates run, their noise and gates), ``vo``
+(:class:`~gaitnet.vio.odometry.OdometryParams`), ``tags``
+(:class:`~gaitnet.vio.apriltags.AprilTagParams`), ``floor``
+(:class:`~gaitnet.vio.floor.FloorParams`), ``feet`` (:class:`~gaitnet.vio.feet.FootParams`),
+``stance`` (:class:`~gaitnet.vio.stance_tracker.StanceParams`), ``smoother`` and
+``gait``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from gaitnet.checks import check_int_range, check_positive, check_range
+from gaitnet.io.types import ImuNoise, SessionCalibration
+from gaitnet.vio.apriltags import AprilTagParams
+from gaitnet.vio.feet import FootParams
+from gaitnet.vio.floor import FloorParams
+from gaitnet.vio.initialise import InitParams
+from gaitnet.vio.odometry import OdometryParams
+from gaitnet.vio.stance_tracker import StanceParams
+
+__all__ = ["FilterParams", "GaitParams", "ImuNoiseParams", "SmootherParams", "VioConfig"]
+
+
+@dataclass(frozen=True)
+class ImuNoiseParams:
+    """Continuous-time IMU noise densities (SI). Defaults: the BMI055 datasheet (the D455's IMU):
+    gyroscope 0.014 °/s/√Hz, accelerometer 150 µg/√Hz; bias random walks are not on the
+    datasheet and are set to the values commonly used for the D4xx IMU in calibration tools
+    (gyro 2e-5 rad/s²/√Hz, accelerometer 3e-4 m/s³/√Hz). ``from_session``: use session.yaml's
+    ``imu_noise`` when it has one. ``scale``: multiplies every density (inflates the noise to
+    absorb unmodelled effects such as scale errors and vibration)."""
+
+    gyro_noise_density: float = math.radians(0.014)
+    accel_noise_density: float = 150e-6 * 9.80665
+    gyro_bias_random_walk: float = 2e-5
+    accel_bias_random_walk: float = 3e-4
+    from_session: bool = True
+    scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in (
+            "gyro_noise_density",
+            "accel_noise_density",
+            "gyro_bias_random_walk",
+            "accel_bias_random_walk",
+            "scale",
+        ):
+            check_positive(name, getattr(self, name))
+
+
+@dataclass(frozen=True)
+class FilterParams:
+    """Which updates run and their noise. ``gate_probability``: a measurement whose innovation's
+    Mahalanobis distance exceeds the χ² quantile of this probability (for its dimension) is
+    rejected and counted (0 disables the gate). ``foot_std_m``: standard deviation of a
+    measured stance-foot point per axis [m]. ``min_foot_observations``: landmarks seen fewer
+    times are not reported as stance feet. ``end_sheet_std_m``: placement uncertainty of a
+    tag sheet other than the one that initialised the state (the thesis's ε2: the end sheet's
+    distance is tape-measured; a few millimetres). ``gravity_mps2``: gravity magnitude; 0 takes
+    the accelerometer's mean magnitude while standing at the start (it then also absorbs the
+    accelerometer's vertical scale error). ``marginalise_after_s``: a landmark not observed
+    for this long [s] leaves the state (its foot has left; the stance tracker reopens a stance
+    hidden for less than its ``reopen_s``)."""
+
+    use_vo: bool = True
+    use_tags: bool = True
+    use_feet: bool = True
+    gate_probability: float = 0.999
+    foot_std_m: float = 0.01
+    min_foot_observations: int = 3
+    end_sheet_std_m: float = 0.005
+    gravity_mps2: float = 0.0
+    marginalise_after_s: float = 1.2
+
+    def __post_init__(self) -> None:
+        check_range("end_sheet_std_m", self.end_sheet_std_m, 0.0)
+        check_positive("marginalise_after_s", self.marginalise_after_s)
+        if self.gravity_mps2 != 0.0:
+            check_range("gravity_mps2", self.gravity_mps2, 9.7, 9.9)
+        check_range("gate_probability", self.gate_probability, 0.0, 1.0 - 1e-12)
+        check_positive("foot_std_m", self.foot_std_m)
+        check_int_range("min_foot_observations", self.min_foot_observations, 1)
+
+
+@dataclass(frozen=True)
+class SmootherParams:
+    """``enabled``: run the smoother after the filter (sec. 3.5)."""
+
+    enabled: bool = True
+
+
+@dataclass(frozen=True)
+class GaitParams:
+    """Steady strides (:mod:`gaitnet.vio.gait`): ``max_stride_time_s`` [s] (a normal stride
+    lasts 1.0–1.4 s; 2.5 s allows very slow walkers) and ``max_stance_time_s`` [s] (a stance
+    seen longer than this is standing: foot-flat lasts ≤ ~0.8 s even at 0.6 m/s)."""
+
+    max_stride_time_s: float = 2.5
+    max_stance_time_s: float = 1.2
+
+    def __post_init__(self) -> None:
+        check_positive("max_stride_time_s", self.max_stride_time_s)
+        check_positive("max_stance_time_s", self.max_stance_time_s)
+
+
+@dataclass(frozen=True)
+class VioConfig:
+    """The whole filter config (module docstring)."""
+
+    imu: ImuNoiseParams = field(default_factory=ImuNoiseParams)
+    init: InitParams = field(default_factory=InitParams)
+    filter: FilterParams = field(default_factory=FilterParams)
+    vo: OdometryParams = field(default_factory=OdometryParams)
+    tags: AprilTagParams = field(default_factory=AprilTagParams)
+    floor: FloorParams = field(default_factory=FloorParams)
+    feet: FootParams = field(default_factory=FootParams)
+    stance: StanceParams = field(default_factory=StanceParams)
+    smoother: SmootherParams = field(default_factory=SmootherParams)
+    gait: GaitParams = field(default_factory=GaitParams)
+
+    def imu_noise(self, calib: SessionCalibration) -> ImuNoise:
+        """The densities the filter uses: session.yaml's when ``imu.from_session`` and the
+        session has them, else this config's; times ``imu.scale``."""
+        src = calib.imu_noise if (self.imu.from_session and calib.imu_noise) else self.imu
+        s = self.imu.scale
+        return ImuNoise(
+            gyro_noise_density=src.gyro_noise_density * s,
+            accel_noise_density=src.accel_noise_density * s,
+            gyro_bias_random_walk=src.gyro_bias_random_walk * s,
+            accel_bias_random_walk=src.accel_bias_random_walk * s,
+        )

@@ -1,0 +1,62 @@
+"""What one run of the filter and smoother produces (:func:`gaitnet.vio.run.run_vio`)."""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gaitnet.vio.gait import Stride
+
+__all__ = ["StanceFoot", "VioResult"]
+
+
+@dataclass(frozen=True)
+class StanceFoot:
+    """One stance-foot landmark: ``side``, the first and last frame time it was observed [s],
+    its floor position ``xy`` (world, smoothed when the smoother ran, else the filter's),
+    its standard deviations ``std_xy`` [m] and the number of observations."""
+
+    landmark_id: int
+    side: str
+    t_first_s: float
+    t_last_s: float
+    xy: np.ndarray
+    std_xy: np.ndarray
+    n_observations: int
+
+
+@dataclass
+class VioResult:
+    """Trajectories at the frame times ``t_s`` (n,) [s, session clock]: the filter's IMU and
+    colour-camera poses ``T_WfromI_filter``/``T_WfromC_filter`` (n, 4, 4), the smoothed ones
+    (None when the smoother is off), the IMU-only dead-reckoning camera poses (same
+    initialisation, no visual update), stance feet, strides, and what happened on the way:
+    ``initialisation`` (``"apriltag"`` or ``"gravity_floor"``) with a sentence saying how,
+    per-update counts of used and skipped measurements with reasons, timings [s]."""
+
+    t_s: np.ndarray
+    T_WfromI_filter: np.ndarray
+    T_WfromC_filter: np.ndarray
+    T_WfromC_imu_only: np.ndarray
+    T_WfromI_smoothed: np.ndarray | None
+    T_WfromC_smoothed: np.ndarray | None
+    stance_feet: list[StanceFoot]
+    strides: list[Stride]
+    initialisation: str
+    initialisation_note: str
+    used: Counter = field(default_factory=Counter)
+    skipped: dict[str, Counter] = field(default_factory=dict)
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    def skip(self, kind: str, reason: str) -> None:
+        """Count one skipped ``kind`` measurement (``vo``, ``tag``, ``foot``, ``frame``)."""
+        self.skipped.setdefault(kind, Counter())[reason] += 1
+
+    @property
+    def T_WfromC(self) -> np.ndarray:
+        """The best camera trajectory: smoothed when available, else the filter's."""
+        return (
+            self.T_WfromC_smoothed if self.T_WfromC_smoothed is not None else self.T_WfromC_filter
+        )
