@@ -55,22 +55,28 @@ class ImuNoiseParams:
 
 @dataclass(frozen=True)
 class FilterParams:
-    """Which updates run and their noise. ``gate_probability``: a measurement whose innovation's
-    Mahalanobis distance exceeds the χ² quantile of this probability (for its dimension) is
-    rejected and counted (0 disables the gate). ``foot_std_m``: standard deviation of a
-    measured stance-foot point per axis [m]. ``min_foot_observations``: landmarks seen fewer
-    times are not reported as stance feet. ``end_sheet_std_m``: placement uncertainty of a
-    tag sheet other than the one that initialised the state (the thesis's ε2: the end sheet's
-    distance is tape-measured; a few millimetres). ``gravity_mps2``: gravity magnitude; 0 takes
-    the accelerometer's mean magnitude while standing at the start (it then also absorbs the
+    """Which updates run and their noise.
+
+    ``*_gate_probability``: a measurement whose innovation's Mahalanobis distance exceeds the
+    χ² quantile of this probability (for its dimension) is rejected and counted (0 disables
+    the gate). Tags are not gated by default: the detector already refuses wrong ids and poor
+    fits (``tags.max_reprojection_rms_px``), and a gate would refuse the end sheet's
+    correction of the drift accumulated during the walk. ``foot_std_m``: standard deviation
+    of a measured stance-foot point per axis [m]. ``min_foot_observations``: landmarks seen
+    fewer times are not reported. ``end_sheet_std_m``: placement uncertainty of a tag sheet
+    other than the one that initialised the state (the thesis's ε2: the end sheet's distance
+    is tape-measured; a few millimetres). ``gravity_mps2``: gravity magnitude; 0 takes the
+    accelerometer's mean magnitude while standing at the start (it then also absorbs the
     accelerometer's vertical scale error). ``marginalise_after_s``: a landmark not observed
-    for this long [s] leaves the state (its foot has left; the stance tracker reopens a stance
-    hidden for less than its ``reopen_s``)."""
+    for this long [s] leaves the state (its foot has left).
+    """
 
     use_vo: bool = True
     use_tags: bool = True
     use_feet: bool = True
-    gate_probability: float = 0.999
+    vo_gate_probability: float = 0.999
+    tag_gate_probability: float = 0.0
+    foot_gate_probability: float = 0.999
     foot_std_m: float = 0.01
     min_foot_observations: int = 3
     end_sheet_std_m: float = 0.005
@@ -78,13 +84,14 @@ class FilterParams:
     marginalise_after_s: float = 1.2
 
     def __post_init__(self) -> None:
+        for name in ("vo_gate_probability", "tag_gate_probability", "foot_gate_probability"):
+            check_range(name, getattr(self, name), 0.0, 1.0 - 1e-12)
+        check_positive("foot_std_m", self.foot_std_m)
+        check_int_range("min_foot_observations", self.min_foot_observations, 1)
         check_range("end_sheet_std_m", self.end_sheet_std_m, 0.0)
         check_positive("marginalise_after_s", self.marginalise_after_s)
         if self.gravity_mps2 != 0.0:
             check_range("gravity_mps2", self.gravity_mps2, 9.7, 9.9)
-        check_range("gate_probability", self.gate_probability, 0.0, 1.0 - 1e-12)
-        check_positive("foot_std_m", self.foot_std_m)
-        check_int_range("min_foot_observations", self.min_foot_observations, 1)
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ initial state is kept as a baseline.
 from __future__ import annotations
 
 import logging
+import re
 import time
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
@@ -39,6 +40,7 @@ from gaitnet.vio.floor import fit_floor_depth
 from gaitnet.vio.gait import Stance, strides_from_stances
 from gaitnet.vio.imu_propagation import propagate_to
 from gaitnet.vio.initialise import initialise, up_in_camera
+from gaitnet.vio.measurement import Measurement
 from gaitnet.vio.odometry import FrameOdometry
 from gaitnet.vio.result import StanceFoot, VioResult
 from gaitnet.vio.state import FilterState
@@ -60,6 +62,13 @@ class _Landmark:
     n_obs: int = 1
     xy: np.ndarray = field(default_factory=lambda: np.zeros(2))
     std_xy: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+
+def _reason(up: covariance.UpdateResult) -> str:
+    """A rejected update's reason without its numbers (counts group by reason)."""
+    if np.isfinite(up.chi2) and "chi2" in up.reason:
+        return "outside the chi2 gate"
+    return re.sub(r"[-+]?\d+(\.\d+)?(e[-+]?\d+)?", "#", up.reason) or "rejected"
 
 
 def _freeze(state: FilterState, lm_id: int, lm: _Landmark) -> None:
@@ -114,9 +123,9 @@ def run_vio(source: SessionSource, cfg: VioConfig, progress: Progress | None = N
     result_used: Counter = Counter()
     skipped: dict[str, Counter] = {}
 
-    def gated_update(m) -> covariance.UpdateResult:
-        p = cfg.filter.gate_probability
-        return covariance.update(state, m, gate_chi2=covariance.chi2_gate(m.dim, p) if p else None)
+    def gated_update(m: Measurement, probability: float) -> covariance.UpdateResult:
+        gate = covariance.chi2_gate(m.dim, probability) if probability else None
+        return covariance.update(state, m, gate_chi2=gate)
 
     def skip(kind: str, reason: str) -> None:
         skipped.setdefault(kind, Counter())[reason] += 1
@@ -148,11 +157,11 @@ def run_vio(source: SessionSource, cfg: VioConfig, progress: Progress | None = N
             tic = time.perf_counter()
             if vo.ok:
                 m = vo_measurement(state, T_CfromI, vo.R, vo.t, vo.cov6)
-                up = gated_update(m)
+                up = gated_update(m, cfg.filter.vo_gate_probability)
                 if up.accepted:
                     result_used["vo"] += 1
                 else:
-                    skip("vo", up.reason or "chi2 gate")
+                    skip("vo", _reason(up))
             else:
                 skip("vo", vo.reason or "odometry failed")
             clock["vo_update"] += time.perf_counter() - tic
@@ -173,12 +182,12 @@ def run_vio(source: SessionSource, cfg: VioConfig, progress: Progress | None = N
                     end_sheet_eps2=eps2,
                     use_attitude=not tags_initialised,
                 )
-                up = gated_update(m)
+                up = gated_update(m, cfg.filter.tag_gate_probability)
                 if up.accepted:
                     result_used["tag"] += 1
                     tags_initialised = True
                 else:
-                    skip("tag", up.reason or "chi2 gate")
+                    skip("tag", _reason(up))
             clock["tags"] += time.perf_counter() - tic
 
         # --- floor, stance-foot candidates, landmarks (3.22)–(3.26), (3.35)–(3.48)
@@ -212,14 +221,14 @@ def run_vio(source: SessionSource, cfg: VioConfig, progress: Progress | None = N
                     result_used["foot_new"] += 1
                     continue
                 m = foot_measurement(state, T_CfromI, a.stance_id, cand.p_FinC, R3)
-                up = gated_update(m)
+                up = gated_update(m, cfg.filter.foot_gate_probability)
                 if up.accepted:
                     lm = landmarks[a.stance_id]
                     lm.t_last_s = t
                     lm.n_obs += 1
                     result_used["foot"] += 1
                 else:
-                    skip("foot", up.reason or "chi2 gate")
+                    skip("foot", _reason(up))
             for lm_id in list(state.landmarks):
                 if t - landmarks[lm_id].t_last_s > cfg.filter.marginalise_after_s:
                     _freeze(state, lm_id, landmarks[lm_id])
