@@ -143,22 +143,22 @@ class FloorRelief:
             return out
         cx, cy, cz = (float(v) for v in c)
         f32 = np.float32
-        lip = self.lip(cx + t0 * D[0], cy + t0 * D[1])
+        lip = self.lip(cx + t0 * D[0], cy + t0 * D[1]) if self.lips.size else None
         bs = [f32(kx) * D[0] + f32(ky) * D[1] for _, kx, ky, _ in self.waves]
-        amps = [np.full(t0.shape, a, np.float32) for a in self.waves[:, 0]]
         t = t0 if t_start is None else t_start
         for _ in range(steps):
             g = t * D[2]
             g += f32(cz)
-            g -= lip
+            if lip is not None:
+                g -= lip
             dg = D[2].copy()
-            for (_, kx, ky, phi), b, amp in zip(self.waves, bs, amps, strict=True):
+            for (a, kx, ky, phi), b in zip(self.waves, bs, strict=True):
                 theta = t * b
                 theta += f32(kx * cx + ky * cy + phi)
-                acos, asin = cv2.polarToCart(amp, theta)
-                g -= acos
-                asin *= b
-                dg += asin
+                cos, sin = cv2.polarToCart(None, theta)  # unit magnitudes
+                cv2.scaleAdd(cos, -a, g, dst=g)
+                sin *= b
+                cv2.scaleAdd(sin, a, dg, dst=dg)
             g /= dg
             t = t - g
         return t
