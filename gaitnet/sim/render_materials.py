@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 
 from gaitnet.sim.render_prims import RoundCone
-from gaitnet.sim.render_types import F32, Lighting, normalize_rows, rowdot
+from gaitnet.sim.render_types import F32, Lighting, cross3, normalize_rows, rowdot
 from gaitnet.sim.scene import Appearance
 
 FABRIC_N = 256
@@ -111,7 +111,7 @@ def shade_leg(
     if np.linalg.norm(e1) < 1e-3:
         e1 = lf.up - (lf.up @ u) * u
     e1 = e1 / np.linalg.norm(e1)
-    e2 = np.cross(u, e1)
+    e2 = cross3(u, e1)
     q = p - a
     rows = (q @ (u / np.float32(FABRIC_TEXEL_M))).astype(np.float32)
     theta = np.arctan2(q @ e2, q @ e1)

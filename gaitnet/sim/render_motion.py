@@ -189,13 +189,16 @@ def motion_blur(
     n = int(np.clip(np.ceil(float(np.hypot(d[:, 0], d[:, 1]).max()) / STEP_PX), 1, MAX_SAMPLES))
     alpha = roi.astype(np.float32)
     layer = cv2.merge([c * alpha for c in cv2.split(rgb[r0:r1, c0:c1])] + [alpha])
-    gx = np.arange(c1 - c0, dtype=np.float32)[None, :]
-    gy = np.arange(r1 - r0, dtype=np.float32)[:, None]
+    gx = np.broadcast_to(np.arange(c1 - c0, dtype=np.float32)[None, :], fx.shape).copy()
+    gy = np.broadcast_to(np.arange(r1 - r0, dtype=np.float32)[:, None], fx.shape).copy()
     acc = np.zeros_like(layer)
+    mx, my = np.empty_like(fx), np.empty_like(fy)
     for i in range(n):
-        s = np.float32((i + 0.5) / n - 0.5)
-        acc += cv2.remap(layer, gx - s * fx, gy - s * fy,
-                         cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)  # fmt: skip
+        s = float((i + 0.5) / n - 0.5)
+        cv2.scaleAdd(fx, -s, gx, dst=mx)
+        cv2.scaleAdd(fy, -s, gy, dst=my)
+        sample = cv2.remap(layer, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+        cv2.add(acc, sample, dst=acc)
     *colour, cover = cv2.split(acc * np.float32(1.0 / n))
     region = out[r0:r1, c0:c1]
     keep = 1 - cover

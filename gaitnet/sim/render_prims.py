@@ -28,7 +28,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from gaitnet.sim.render_types import normalize_rows
+from gaitnet.sim.render_types import cross3, normalize_rows
 from gaitnet.sim.scene import LegSegment, ShoeState
 
 F32 = NDArray[np.float32]
@@ -77,9 +77,9 @@ def screen_bbox(
 def _basis(axis: np.ndarray) -> np.ndarray:
     """(3, 3) orthonormal columns whose first column is ``axis`` (unit)."""
     helper = np.array([0.0, 0.0, 1.0]) if abs(axis[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    e1 = np.cross(axis, helper)
+    e1 = cross3(axis, helper)
     e1 /= np.linalg.norm(e1)
-    return np.stack([axis, e1, np.cross(axis, e1)], axis=1)
+    return np.stack([axis, e1, cross3(axis, e1)], axis=1)
 
 
 # ----------------------------------------------------------------------------- round cone
