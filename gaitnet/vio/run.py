@@ -144,6 +144,7 @@ def run_vio(source: SessionSource, cfg: VioConfig, progress: Progress | None = N
         if t > state.imu.t_s:
             propagate_to(state, imu, t, noise, gravity_mps2=gravity, t_ref_ns=t_ref_ns)
             propagate_to(baseline, imu, t, noise, gravity_mps2=gravity, t_ref_ns=t_ref_ns)
+            covariance.check_healthy(state)  # a corrupt IMU sample stops here, not later
         clock["propagation"] += time.perf_counter() - tic
 
         # --- visual odometry between the previous frame and this one (3.11)–(3.21)
