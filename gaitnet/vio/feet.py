@@ -1,0 +1,224 @@
+"""Stance-foot candidates from the depth image and the floor plane (thesis (3.22)–(3.26)).
+
+Pixels whose height above the floor lies in ``[h_min, h_max]`` (3.24) are grouped into
+8-connected components (``cv.connectedComponentsWithStats``); components whose area on the
+floor is outside the size limits are dropped and the two largest are kept. Each gets an
+ellipse fitted to its outline (``cv.fitEllipse``, the "foot edge" of sec. 3.3.2) and a foot
+point.
+
+Foot point: the measured foot position (3.26) is compared with a landmark on ``z = 0`` (3.35),
+so it must lie ON the floor (thesis notes). The component's 3-D points are projected
+orthogonally onto the fitted plane and described in a floor frame with the walking direction
+``f`` (the optical axis projected on the floor: the camera faces forward) and the lateral
+direction ``s``. The default ``point_method = "toe"`` uses the known shoe size like the
+thesis's ellipse "with known major and minor axes": along ``f`` the foot point is the toe
+(98th percentile of the points along ``f``) moved back by ``shoe_length_m / 2 − toe_margin_m``,
+across it the middle of the 2nd–98th percentile extent. Why not the centroid: the shin hides
+the back of the shoe from a waist camera and the inner side walls are seen but not the outer
+ones, so the visible centroid sits ~4 cm ahead of and ~8 mm inside the sole centre, by an amount
+that changes as the foot moves through the image (benchmark: along-foot spread 5–7 mm for the
+centroid, 1.2–1.5 mm for the toe). ``"centroid"`` (the projected centroid) and ``"ray"`` (the
+ray through the image ellipse centre intersected with the plane, which lands behind the shoe
+by its height times the tangent of the viewing angle) are kept for comparison
+(``benchmarks/bench_detectors.py``).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import cv2 as cv
+import numpy as np
+
+from gaitnet.vio.floor import FloorPlane, height_map
+
+log = logging.getLogger(__name__)
+
+__all__ = ["FootCandidate", "FootParams", "detect_foot_candidates"]
+
+
+@dataclass(frozen=True)
+class FootParams:
+    """Foot-candidate thresholds (tuned on simulated sessions det_s200–s205; the thesis gives
+    none of ``h_foot,min/max``, ``N_foot,min``)."""
+
+    h_min_m: float = 0.015
+    """Lowest height above the floor of a foot pixel [m] (3.24): above the floor's relief and
+    depth noise (a few mm at 1–2 m) with margin."""
+    h_max_m: float = 0.10
+    """Highest [m] (3.24): a shoe's instep is ≤ ~9 cm high; above it the shin would merge."""
+    stride: int = 2
+    """Work on every ``stride``-th row and column (640×480 → 320×240): a shoe still covers
+    hundreds of pixels, and the per-frame time drops about 4×."""
+    min_area_m2: float = 0.004
+    """Smallest component area on the floor [m²] (``N_foot,min`` of the thesis, as an area so
+    that it does not depend on resolution or distance): a fifth of a shoe's top view (~0.02 m²)
+    — a foot half out of the image still counts, clutter crumbs do not."""
+    max_area_m2: float = 0.08
+    """Largest component area [m²] (four shoes): larger low objects (a box, a step) are not feet."""
+    max_length_m: float = 0.45
+    """Longest extent of a component on the floor [m] (2·√λ_max of its points × 2): a shoe is
+    ≤ 0.33 m; two feet merged side by side or a long object is rejected."""
+    min_pixels: int = 20
+    """Components smaller than this many pixels (working resolution) are not examined (speed;
+    20 px at 320×240 is < 0.002 m² at 2 m)."""
+    max_candidates: int = 2
+    """Keep the largest this many components (the thesis keeps two)."""
+    point_method: str = "toe"
+    """``toe`` (default), ``centroid`` or ``ray`` (module docstring)."""
+    shoe_length_m: float = 0.28
+    """Outside length of the shoe [m] (thesis: the foot size is known). A wrong value shifts
+    every foot point of the subject by the same amount along the walking direction (stride
+    lengths unchanged); 0.28 m is an adult EU 42–43 shoe; set it per subject when known."""
+    toe_margin_m: float = 0.0125
+    """How far the 98th-percentile toe point lies behind the shoe's tip [m] (tuned on
+    det_s200–s204: 11.0–13.6 mm, spread 1.4 mm)."""
+    border_px: int = 2
+    """A component within this many pixels (full resolution) of the image border is flagged
+    ``at_border`` (the foot is entering or leaving the image: its centroid is biased)."""
+
+
+@dataclass(frozen=True)
+class FootCandidate:
+    """One stance-foot candidate in a frame.
+
+    ``p_FinC`` (3,) the foot point on the floor plane (camera frame, m); ``n_pixels`` the
+    component's pixels at the working resolution; ``area_m2`` its area on the floor;
+    ``ellipse`` ``((u, v), (axis1, axis2), angle_deg)`` of ``cv.fitEllipse`` in full-resolution
+    pixels; ``length_m``/``width_m`` the extent along/across its main floor axis (4·√λ of the
+    floor-plane scatter); ``axis_C`` (3,) the main axis direction on the floor (camera frame,
+    pointing forward); ``at_border`` whether it touches the image border; ``centroid_C`` the
+    projected centroid.
+    """
+
+    p_FinC: np.ndarray
+    n_pixels: int
+    area_m2: float
+    ellipse: tuple[tuple[float, float], tuple[float, float], float]
+    length_m: float
+    width_m: float
+    axis_C: np.ndarray
+    at_border: bool
+    centroid_C: np.ndarray
+
+
+def _plane_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(n, a)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(n, e1)
+
+
+def detect_foot_candidates(
+    depth_m: np.ndarray, K: np.ndarray, plane: FloorPlane, params: FootParams | None = None
+) -> list[FootCandidate]:
+    """Stance-foot candidates (3.24)–(3.26) of one depth image, largest first (≤ 2).
+
+    ``depth_m`` (H, W) metres aligned to the colour camera ``K``, 0 where invalid;
+    ``plane`` the frame's floor (:func:`gaitnet.vio.floor.fit_floor`).
+    """
+    params = params or FootParams()
+    if params.point_method not in ("toe", "centroid", "ray"):
+        raise ValueError(
+            f"point_method must be 'toe', 'centroid' or 'ray', got {params.point_method!r}"
+        )
+    K = np.asarray(K, dtype=np.float64)
+    s = int(params.stride)
+    d = np.asarray(depth_m, dtype=np.float32)
+    H_full, W_full = d.shape
+    if s > 1:
+        d = d[::s, ::s]
+        Ks = K.copy()
+        Ks[0, 0] /= s
+        Ks[1, 1] /= s
+        Ks[0, 2] /= s
+        Ks[1, 2] /= s
+    else:
+        Ks = K
+    hmap = height_map(d, Ks, plane)
+    with np.errstate(invalid="ignore"):
+        mask = ((hmap >= params.h_min_m) & (hmap <= params.h_max_m)).astype(np.uint8)
+    n_lab, labels, stats, _ = cv.connectedComponentsWithStats(mask, connectivity=8)
+    if n_lab <= 1:
+        return []
+    order = np.argsort(-stats[1:, cv.CC_STAT_AREA]) + 1
+    out: list[FootCandidate] = []
+    e1, e2 = _plane_basis(plane.n_C)
+    # walking direction: the optical axis projected on the floor (the camera faces forward)
+    fwd = np.array([0.0, 0.0, 1.0]) - plane.n_C[2] * plane.n_C
+    fwd /= np.linalg.norm(fwd)
+    side = np.cross(plane.n_C, fwd)
+    for lab in order:
+        x0, y0, w, h, area_px = stats[lab]
+        if area_px < params.min_pixels:
+            break
+        sub = labels[y0 : y0 + h, x0 : x0 + w] == lab
+        vv, uu = np.nonzero(sub)
+        z = d[y0 : y0 + h, x0 : x0 + w][sub].astype(np.float64)
+        u = uu + x0
+        v = vv + y0
+        x_n = (u - Ks[0, 2]) / Ks[0, 0]
+        y_n = (v - Ks[1, 2]) / Ks[1, 1]
+        rays = np.stack([x_n, y_n, np.ones_like(x_n)], axis=1)
+        P = rays * z[:, None]
+        # Floor-projected area: a pixel at depth z on a floor-parallel surface covers
+        # z² / (fx fy) / |n·r| (r = (x_n, y_n, 1)); grazing rays are clamped at |n·r̂| ≥ 0.2.
+        n_dot = np.maximum(np.abs(rays @ plane.n_C), 0.2 * np.linalg.norm(rays, axis=1))
+        area = float(np.sum(z**2 / n_dot) / (Ks[0, 0] * Ks[1, 1]))
+        if not params.min_area_m2 <= area <= params.max_area_m2:
+            continue
+        Q = plane.project(P)
+        q2 = np.stack([Q @ e1, Q @ e2], axis=1)
+        c2 = q2.mean(axis=0)
+        cov = np.cov((q2 - c2).T) if len(q2) > 2 else np.eye(2) * 1e-6
+        evals, evecs = np.linalg.eigh(cov)
+        length = 4.0 * float(np.sqrt(max(evals[1], 0.0)))
+        width = 4.0 * float(np.sqrt(max(evals[0], 0.0)))
+        if length > params.max_length_m:
+            continue
+        axis_C = evecs[0, 1] * e1 + evecs[1, 1] * e2
+        if axis_C @ fwd < 0:
+            axis_C = -axis_C
+        contours, _ = cv.findContours(sub.astype(np.uint8), cv.RETR_EXTERNAL, cv.CHAIN_APPROX_NONE)
+        cnt = max(contours, key=len).reshape(-1, 2).astype(np.float32)
+        if len(cnt) >= 5:
+            (ecx, ecy), axes, ang = cv.fitEllipse(cnt)
+        else:
+            ecx, ecy, axes, ang = float(uu.mean()), float(vv.mean()), (1.0, 1.0), 0.0
+        # back to full-resolution pixels (pixel-centre model)
+        ecx_full = (ecx + x0) * s  # sample i of the decimated image is pixel s·i
+        ecy_full = (ecy + y0) * s
+        ellipse = ((float(ecx_full), float(ecy_full)), (axes[0] * s, axes[1] * s), float(ang))
+        if params.point_method == "toe":
+            lo_s, hi_s = np.percentile(Q @ side, [2.0, 98.0])
+            toe_f = float(np.percentile(Q @ fwd, 98.0))
+            back = 0.5 * params.shoe_length_m - params.toe_margin_m
+            p_F = (toe_f - back) * fwd + 0.5 * (lo_s + hi_s) * side - plane.h * plane.n_C
+        elif params.point_method == "centroid":
+            p_F = Q.mean(axis=0)
+        else:
+            ray = np.array([(ecx_full - K[0, 2]) / K[0, 0], (ecy_full - K[1, 2]) / K[1, 1], 1.0])
+            p_F = plane.intersect_ray(ray)
+            if p_F is None:
+                continue
+        b = params.border_px
+        at_border = bool(
+            x0 * s <= b or y0 * s <= b or (x0 + w) * s >= W_full - b or (y0 + h) * s >= H_full - b
+        )
+        out.append(
+            FootCandidate(
+                p_FinC=p_F,
+                n_pixels=int(area_px),
+                area_m2=area,
+                ellipse=ellipse,
+                length_m=length,
+                width_m=width,
+                axis_C=axis_C,
+                at_border=at_border,
+                centroid_C=Q.mean(axis=0),
+            )
+        )
+        if len(out) >= params.max_candidates:
+            break
+    return out

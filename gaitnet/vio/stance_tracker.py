@@ -1,0 +1,328 @@
+"""Grouping of stance-foot candidates into stances, and left/right labels (thesis sec. 3.3.2).
+
+D.-C. Dang's thesis separates left and right feet and groups the detections of one stance
+period ((3.25), the sets ``S_left,l``) with "a simple tracking algorithm" it does not describe;
+this module is the project's design.
+
+Per frame the caller passes the candidates' floor points in the WORLD frame (moved with the
+current pose estimate) and, optionally, the walking direction (the camera's optical axis
+projected on the floor) and the camera position. :meth:`StanceTracker.update` returns per
+candidate a :class:`StanceAssignment` ``(side, stance_id, is_new)``, or None while the
+candidate is not (yet) part of a stance.
+
+Grouping. A stance is a foot staying within ``assoc_radius_m`` of the same floor point.
+Candidates are associated greedily (nearest first) with open tracks whose mean point is within
+the radius; an unmatched candidate starts a tentative track, which becomes a stance once it has
+``confirm_frames`` observations (a swing foot passing through the height band moves ~10 cm per
+frame and never does); ``is_new`` is True on that frame (the filter augments the landmark then).
+A track not observed for ``max_gap_s`` is closed: the foot left (lifted, or out of view). A
+closed stance observed again within ``reopen_s`` at the same point (the foot was hidden by the
+other leg) is re-opened under the same id instead of starting a duplicate.
+
+Left/right. Labels come from a two-state Viterbi over all stances in order of their start,
+re-run whenever a stance is confirmed (so earlier labels may be corrected; :meth:`finish` returns
+the final ones). Pairwise costs between consecutive stances ``a`` → ``b``, with ``d`` the lateral
+offset of ``b`` from ``a`` (positive to the right of the walking direction):
+different sides cost ``softplus(−s_b d / σ)`` (``s = +1`` right, ``−1`` left: a right foot lies
+to the right of the left one), the same side costs ``same_side_cost + ½ (d / σ_same)²``
+(normally feet alternate; a missed stance breaks that, but then both lie on one line), and two
+stances down at the same time (double support, standing) must differ (a large cost). A weak
+unary term ``softplus(−s d_C / σ_C)`` uses the offset from the camera, which is near the body's
+midline. This labels standing (both feet down side by side), walking (alternation + step width)
+and one foot seen alone. Candidates far to the side of the camera (``max_camera_offset_m``) are
+ignored: low objects on the floor are not feet.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+__all__ = ["Stance", "StanceAssignment", "StanceParams", "StanceTracker"]
+
+
+@dataclass(frozen=True)
+class StanceParams:
+    """Stance grouping and side labelling (tuned on simulated sessions det_s200–s205)."""
+
+    assoc_radius_m: float = 0.04
+    """A candidate within this distance [m] of a track's mean point belongs to it: a flat foot's
+    detected point scatters by ~2 mm (benchmark), a pose drifting during a stance and the
+    heel-strike-to-foot-flat roll add ~1–2 cm; swing feet move ~10 cm per frame."""
+    confirm_frames: int = 3
+    """Observations before a track is a stance (0.1 s at 30 Hz; a flat interval in walking lasts
+    ~0.3 s)."""
+    max_gap_s: float = 0.15
+    """Close a track not observed for this long [s] (≈ 4 frames at 30 Hz)."""
+    reopen_s: float = 1.0
+    """A closed stance seen again at the same point within this time [s] is re-opened."""
+    side_sigma_m: float = 0.03
+    """Scale [m] of the lateral offset between consecutive opposite feet (step width
+    ~0.05–0.15 m) in the side costs."""
+    same_side_sigma_m: float = 0.04
+    """Scale [m] of the lateral offset between consecutive stances of one foot (≈ 0)."""
+    same_side_cost: float = 0.5
+    """Extra cost of two consecutive stances on one side (a missed stance, or one foot seen
+    alone), in nats: a weak alternation prior; the lateral offsets decide when the step width
+    is more than ~3 cm."""
+    tie_s: float = 0.05
+    """Stances starting within this time [s] (standing: both feet found in the first frames)
+    are chained in order of their last observation: the foot that stays down is next to the
+    first step's stance."""
+    camera_sigma_m: float = 0.15
+    """Scale [m] of the weak unary term on the offset from the camera (mount offsets and
+    pelvis sway of a few cm)."""
+    max_camera_offset_m: float = 0.4
+    """Ignore candidates farther than this [m] to the side of the camera (needs ``p_CinW``):
+    feet are within ~0.25 m of a waist camera's line; low clutter on the floor further out
+    would otherwise become stances (seen in simulation: boxes ~0.9 m to the side)."""
+    double_support_cost: float = 20.0
+    """Cost of two stances that are down at the same time having one side."""
+
+
+@dataclass(frozen=True)
+class StanceAssignment:
+    """What a candidate is: ``side`` ('left'/'right'), ``stance_id``, and ``is_new`` (True on
+    the frame the stance is confirmed)."""
+
+    side: str
+    stance_id: int
+    is_new: bool
+
+
+@dataclass
+class Stance:
+    """One stance: ``xy`` the mean world floor point of its observations, times of the first
+    and last observation, ``side``, and the observations ``(t_s, xy)`` (including the tentative
+    ones before confirmation)."""
+
+    id: int
+    side: str
+    xy: np.ndarray
+    t_first: float
+    t_last: float
+    heading: np.ndarray
+    d_camera: float
+    obs: list[tuple[float, np.ndarray]] = field(default_factory=list, repr=False)
+
+    @property
+    def n_obs(self) -> int:
+        return len(self.obs)
+
+
+@dataclass
+class _Track:
+    obs: list[tuple[float, np.ndarray]]
+    stance: Stance | None = None
+    closed: bool = False
+
+    @property
+    def xy(self) -> np.ndarray:
+        return np.mean([p for _, p in self.obs], axis=0)
+
+    @property
+    def t_last(self) -> float:
+        return self.obs[-1][0]
+
+
+def _softplus(x: float) -> float:
+    return max(x, 0.0) + math.log1p(math.exp(-abs(x)))
+
+
+class StanceTracker:
+    """Online stance grouping and left/right labelling (module docstring)."""
+
+    def __init__(self, params: StanceParams | None = None) -> None:
+        self.params = params or StanceParams()
+        self._open: list[_Track] = []
+        self._closed: list[_Track] = []
+        self._stances: list[Stance] = []
+        self._heading = np.array([1.0, 0.0])
+
+    @property
+    def stances(self) -> list[Stance]:
+        """Confirmed stances so far, in order of confirmation."""
+        return list(self._stances)
+
+    def update(
+        self,
+        t_s: float,
+        candidates_xy: list[np.ndarray] | np.ndarray,
+        heading_W: np.ndarray | None = None,
+        p_CinW: np.ndarray | None = None,
+    ) -> list[StanceAssignment | None]:
+        """Process one frame's candidates (world ``(x, y)``), return one entry per candidate.
+
+        ``heading_W``: the walking direction on the floor (any length; e.g. the first two
+        components of the camera's optical axis in the world); ``p_CinW``: the camera position
+        (its first two components are used). Frames must come in time order.
+        """
+        P = self.params
+        if heading_W is not None:
+            h = np.asarray(heading_W, dtype=np.float64)[:2]
+            if np.linalg.norm(h) > 1e-6:
+                self._heading = h / np.linalg.norm(h)
+        cam = None if p_CinW is None else np.asarray(p_CinW, dtype=np.float64)[:2]
+        xy = [np.asarray(c, dtype=np.float64)[:2] for c in candidates_xy]
+        out: list[StanceAssignment | None] = [None] * len(xy)
+        right = np.array([self._heading[1], -self._heading[0]])
+        ignored = set()
+        if cam is not None:
+            ignored = {
+                i for i, p in enumerate(xy) if abs((p - cam) @ right) > P.max_camera_offset_m
+            }
+        # close tracks not seen for too long
+        for tr in list(self._open):
+            if t_s - tr.t_last > P.max_gap_s:
+                self._open.remove(tr)
+                if tr.stance is not None:
+                    tr.closed = True
+                    self._closed.append(tr)
+        # greedy nearest-first association with open tracks
+        pairs = sorted(
+            (float(np.linalg.norm(p - tr.xy)), i, j)
+            for i, p in enumerate(xy)
+            if i not in ignored
+            for j, tr in enumerate(self._open)
+        )
+        used_c: set[int] = set()
+        used_t: set[int] = set()
+        relabel = False
+        for dist, i, j in pairs:
+            if dist > P.assoc_radius_m or i in used_c or j in used_t:
+                continue
+            used_c.add(i)
+            used_t.add(j)
+            tr = self._open[j]
+            tr.obs.append((t_s, xy[i]))
+            if tr.stance is None and len(tr.obs) >= P.confirm_frames:
+                self._confirm(tr, cam)
+                relabel = True
+                out[i] = ("new", tr)  # type: ignore[assignment]
+            elif tr.stance is not None:
+                self._sync(tr)
+                out[i] = ("old", tr)  # type: ignore[assignment]
+        for i, p in enumerate(xy):
+            if i in used_c or i in ignored:
+                continue
+            tr = self._reopen(t_s, p)
+            if tr is not None:
+                tr.obs.append((t_s, p))
+                self._sync(tr)
+                out[i] = ("old", tr)  # type: ignore[assignment]
+            else:
+                tr = _Track(obs=[(t_s, p)])
+                self._open.append(tr)
+                if P.confirm_frames <= 1:
+                    self._confirm(tr, cam)
+                    relabel = True
+                    out[i] = ("new", tr)  # type: ignore[assignment]
+        if relabel:
+            self._label_sides()
+        result: list[StanceAssignment | None] = []
+        for o in out:
+            if o is None:
+                result.append(None)
+            else:
+                kind, tr = o  # type: ignore[misc]
+                st = tr.stance
+                result.append(StanceAssignment(st.side, st.id, kind == "new"))
+        return result
+
+    def finish(self) -> list[Stance]:
+        """Close every track and return all stances with their final side labels."""
+        for tr in self._open:
+            if tr.stance is not None:
+                tr.closed = True
+                self._closed.append(tr)
+        self._open = []
+        self._label_sides()
+        return self.stances
+
+    # -- internals
+
+    def _confirm(self, tr: _Track, cam: np.ndarray | None) -> None:
+        xy = tr.xy
+        right = np.array([self._heading[1], -self._heading[0]])
+        d_cam = 0.0 if cam is None else float((xy - cam) @ right)
+        tr.stance = Stance(
+            id=len(self._stances),
+            side="left",
+            xy=xy,
+            t_first=tr.obs[0][0],
+            t_last=tr.t_last,
+            heading=self._heading.copy(),
+            d_camera=d_cam,
+        )
+        self._stances.append(tr.stance)
+        self._sync(tr)
+        log.debug("stance %d confirmed at (%.3f, %.3f)", tr.stance.id, xy[0], xy[1])
+
+    @staticmethod
+    def _sync(tr: _Track) -> None:
+        st = tr.stance
+        st.xy = tr.xy
+        st.t_last = tr.t_last
+        st.obs = list(tr.obs)
+
+    def _reopen(self, t_s: float, p: np.ndarray) -> _Track | None:
+        P = self.params
+        for tr in reversed(self._closed):
+            if t_s - tr.t_last <= P.reopen_s and np.linalg.norm(p - tr.xy) <= P.assoc_radius_m:
+                self._closed.remove(tr)
+                tr.closed = False
+                self._open.append(tr)
+                return tr
+        return None
+
+    def _label_sides(self) -> None:
+        """Two-state Viterbi over the stances ordered by start time (module docstring)."""
+        P = self.params
+        st = sorted(self._stances, key=lambda s: (s.t_first, s.id))
+        for i in range(len(st) - 1):  # ties: the one that stays down longer goes second
+            a, b = st[i], st[i + 1]
+            if b.t_first - a.t_first <= P.tie_s and b.t_last < a.t_last:
+                st[i], st[i + 1] = b, a
+        if not st:
+            return
+        signs = (-1.0, 1.0)  # left, right
+
+        def unary(s: Stance, sg: float) -> float:
+            return _softplus(-sg * s.d_camera / P.camera_sigma_m)
+
+        cost = np.array([unary(st[0], sg) for sg in signs])
+        back = []
+        for a, b in zip(st[:-1], st[1:], strict=True):
+            h = a.heading + b.heading
+            h = h / np.linalg.norm(h) if np.linalg.norm(h) > 1e-9 else b.heading
+            d = float((b.xy - a.xy) @ np.array([h[1], -h[0]]))
+            overlap = b.t_first <= a.t_last
+            new = np.empty(2)
+            arg = np.empty(2, dtype=int)
+            for jb, sb in enumerate(signs):
+                best = math.inf
+                for ja, sa in enumerate(signs):
+                    if sa != sb:
+                        c = _softplus(-sb * d / P.side_sigma_m)
+                    else:
+                        c = P.same_side_cost + 0.5 * (d / P.same_side_sigma_m) ** 2
+                        if overlap:
+                            c += P.double_support_cost
+                    if cost[ja] + c < best:
+                        best, arg[jb] = cost[ja] + c, ja
+                new[jb] = best + unary(b, sb)
+            cost = new
+            back.append(arg.copy())
+        j = int(np.argmin(cost))
+        labels = [j]
+        for arg in reversed(back):
+            j = int(arg[j])
+            labels.append(j)
+        labels.reverse()
+        for s, j in zip(st, labels, strict=True):
+            s.side = "right" if j == 1 else "left"

@@ -1,0 +1,228 @@
+"""Stance-foot candidates (gaitnet.vio.feet, thesis (3.22)–(3.26)) and the stance tracker."""
+
+import numpy as np
+import pytest
+
+from gaitnet.geometry.rotation import so3_exp
+from gaitnet.vio.feet import FootParams, detect_foot_candidates
+from gaitnet.vio.floor import FloorPlane
+from gaitnet.vio.stance_tracker import StanceParams, StanceTracker
+
+K = np.array([[386.0, 0.0, 319.5], [0.0, 386.0, 239.5], [0.0, 0.0, 1.0]])
+SHAPE = (480, 640)
+
+
+def _pose(pitch_deg=65.0, height=1.0):
+    R0 = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+    T = np.eye(4)
+    T[:3, :3] = so3_exp(np.array([0.0, np.radians(pitch_deg), 0.0])) @ R0
+    T[2, 3] = height
+    return T
+
+
+def _render(T, boxes):
+    """Depth image of the floor z = 0 and axis-aligned boxes (x0, x1, y0, y1, z0, z1) [m]
+    (ray casting; nearest hit)."""
+    H, W = SHAPE
+    v, u = np.mgrid[0:H, 0:W]
+    d_C = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones((H, W))], -1)
+    d_W = d_C @ T[:3, :3].T
+    o = T[:3, 3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s_best = np.where(d_W[..., 2] < 0, -o[2] / d_W[..., 2], np.inf)
+        for x0, x1, y0, y1, z0, z1 in boxes:
+            lo = (np.array([x0, y0, z0]) - o) / d_W
+            hi = (np.array([x1, y1, z1]) - o) / d_W
+            t_near = np.nanmax(np.minimum(lo, hi), axis=-1)
+            t_far = np.nanmin(np.maximum(lo, hi), axis=-1)
+            hit = (t_near <= t_far) & (t_near > 0)
+            s_best = np.where(hit & (t_near < s_best), t_near, s_best)
+    return np.where(np.isfinite(s_best), s_best, 0.0).astype(np.float32)  # z of d_C is 1
+
+
+def _plane(T):
+    return FloorPlane(n_C=T[:3, :3].T @ np.array([0.0, 0.0, 1.0]), h=float(T[2, 3]))
+
+
+def _shoe(cx, cy, length=0.26, width=0.10, height=0.07):
+    return (cx - length / 2, cx + length / 2, cy - width / 2, cy + width / 2, 0.0, height)
+
+
+def _to_world(T, p_C):
+    return T[:3, :3] @ p_C + T[:3, 3]
+
+
+def test_two_shoes_give_two_candidates_on_the_floor():
+    T = _pose()
+    depth = _render(T, [_shoe(0.9, 0.09), _shoe(0.6, -0.09), (1.2, 1.22, 0.3, 0.32, 0.0, 0.05)])
+    params = FootParams(shoe_length_m=0.26, toe_margin_m=0.0)
+    cands = detect_foot_candidates(depth, K, _plane(T), params)
+    assert len(cands) == 2
+    pts = sorted((_to_world(T, c.p_FinC) for c in cands), key=lambda p: p[0])
+    for p, true in zip(pts, ([0.6, -0.09], [0.9, 0.09]), strict=True):
+        assert p[2] == pytest.approx(0.0, abs=1e-9)  # ON the floor plane
+        # toe = 98th percentile of the visible top (2 % in from the tip): within 1 cm
+        assert np.linalg.norm(p[:2] - true) < 0.01
+    for c in cands:
+        assert 0.015 < c.area_m2 < 0.04  # the top of a 0.26 × 0.10 box, plus its sides
+        assert 0.2 < c.length_m < 0.33 and c.width_m < 0.14
+        assert abs(_to_world(T, c.axis_C)[0] - T[0, 3]) > 0.9  # main axis along the walk (+x)
+        assert not c.at_border
+        (u, v), axes, _ = c.ellipse
+        assert 0 <= u < 640 and 0 <= v < 480 and max(axes) > 20
+
+
+def test_centroid_and_ray_points_are_on_the_floor_too():
+    T = _pose()
+    depth = _render(T, [_shoe(0.8, 0.0)])
+    for method in ("centroid", "ray"):
+        (c,) = detect_foot_candidates(depth, K, _plane(T), FootParams(point_method=method))
+        p = _to_world(T, c.p_FinC)
+        assert p[2] == pytest.approx(0.0, abs=1e-9)
+        assert np.linalg.norm(p[:2] - [0.8, 0.0]) < 0.08
+    with pytest.raises(ValueError, match="point_method"):
+        detect_foot_candidates(depth, K, _plane(T), FootParams(point_method="x"))
+
+
+def test_size_and_height_filters():
+    T = _pose()
+    plane = _plane(T)
+    assert detect_foot_candidates(_render(T, []), K, plane) == []
+    # a 1 m × 0.5 m low platform is too large, a 3 cm cube too small
+    big = (0.6, 1.6, -0.25, 0.25, 0.0, 0.05)
+    small = (0.8, 0.83, 0.3, 0.33, 0.0, 0.03)
+    assert detect_foot_candidates(_render(T, [big, small]), K, plane) == []
+    # a shoe floating 15 cm up (a swing foot) is above the band
+    floating = (0.75, 1.01, -0.05, 0.05, 0.15, 0.22)
+    assert detect_foot_candidates(_render(T, [floating]), K, plane) == []
+    # at most two, largest first
+    depth = _render(T, [_shoe(0.6, -0.2), _shoe(0.9, 0.0, length=0.3), _shoe(1.1, 0.25)])
+    cands = detect_foot_candidates(depth, K, plane)
+    assert len(cands) == 2 and cands[0].n_pixels >= cands[1].n_pixels
+
+
+def test_foot_at_the_image_border_is_flagged():
+    T = _pose(pitch_deg=65.0)
+    # the top image border sees the floor at about x = 1.54 m: a shoe across it
+    depth = _render(T, [_shoe(1.5, 0.0)])
+    cands = detect_foot_candidates(depth, K, _plane(T))
+    assert len(cands) == 1 and cands[0].at_border
+
+
+# ------------------------------------------------------------------ stance tracker
+
+FPS = 30.0
+
+
+def _walk(n_steps=8, step=0.6, width=0.09, period=0.5, flat=0.35, visible=("left", "right")):
+    """Scripted candidates of a walk: stance k of alternating feet (right first) is flat from
+    k·period for ``flat`` s; a swing foot crosses the band in two frames between. Returns
+    per-frame (t, [xy...], heading, camera xy) and the true stances (side, xy, t0, t1)."""
+    truth = []
+    for k in range(n_steps):
+        side = "right" if k % 2 == 0 else "left"
+        xy = np.array([0.3 + k * step, -width if side == "right" else width])
+        truth.append((side, xy, k * period, k * period + flat))
+    rng = np.random.default_rng(7)
+    frames = []
+    t_end = n_steps * period + 0.3
+    for i in range(int(t_end * FPS)):
+        t = i / FPS
+        cands = [xy + rng.normal(0, 0.002, 2) for side, xy, t0, t1 in truth
+                 if t0 <= t <= t1 and side in visible]  # fmt: skip
+        phase = (t % period) / period
+        if 0.8 < phase < 0.9:  # a swing foot passing low, moving fast
+            cands.append(np.array([0.3 + t / period * step + 0.3, 0.0]))
+        cam = np.array([0.3 + t / period * step - 0.4, 0.01 * np.sin(2 * np.pi * t)])
+        frames.append((t, cands[:2], np.array([1.0, 0.0]), cam))
+    return frames, truth
+
+
+def _run(frames, params=None):
+    trk = StanceTracker(params)
+    news = 0
+    for t, cands, heading, cam in frames:
+        out = trk.update(t, cands, heading_W=heading, p_CinW=cam)
+        assert len(out) == len(cands)
+        news += sum(o is not None and o.is_new for o in out)
+    stances = trk.finish()
+    assert news == len(stances)
+    return stances
+
+
+def _match(stances, truth):
+    ok = 0
+    for st in stances:
+        d = [np.linalg.norm(st.xy - xy) for _, xy, _, _ in truth]
+        side, xy, t0, t1 = truth[int(np.argmin(d))]
+        assert min(d) < 0.01
+        ok += st.side == side
+    return ok
+
+
+def test_walk_stances_and_sides():
+    frames, truth = _walk()
+    stances = _run(frames)
+    assert len(stances) == len(truth)
+    assert _match(stances, truth) == len(truth)
+    ids = [s.id for s in stances]
+    assert len(set(ids)) == len(ids)
+    for st, (_, _, t0, t1) in zip(sorted(stances, key=lambda s: s.t_first), truth, strict=True):
+        assert st.t_first == pytest.approx(t0, abs=0.04)
+        assert st.t_last == pytest.approx(t1, abs=0.04)  # closed when the foot leaves
+
+
+def test_one_foot_visible():
+    frames, truth = _walk(visible=("left",))
+    stances = _run(frames)
+    left = [t for t in truth if t[0] == "left"]
+    assert len(stances) == len(left)
+    assert _match(stances, left) == len(left)
+
+
+def test_double_support_and_standing():
+    # both feet down for 1 s side by side, then a step with overlapping stances
+    frames = []
+    L, R = np.array([0.0, 0.1]), np.array([0.0, -0.1])
+    R2 = np.array([0.6, -0.1])
+    for i in range(60):
+        t = i / FPS
+        cands = [L, R] if t < 1.2 else [L, R2]
+        if 1.0 < t < 1.2:
+            cands = [L]  # right foot swinging (out of the band)
+        frames.append((t, cands, np.array([1.0, 0.0]), np.array([0.3, 0.0])))
+    stances = _run(frames)
+    sides = {tuple(np.round(s.xy, 2)): s.side for s in stances}
+    assert sides == {(0.0, 0.1): "left", (0.0, -0.1): "right", (0.6, -0.1): "right"}
+
+
+def test_foot_entering_the_image_is_one_stance():
+    # the first detections of a foot coming into view are biased by 2 cm, then settle
+    frames = []
+    true = np.array([1.0, -0.08])
+    for i in range(15):
+        bias = np.array([0.02, 0.0]) * max(0, 3 - i) / 3
+        frames.append((i / FPS, [true + bias], np.array([1.0, 0.0]), np.array([0.6, 0.0])))
+    stances = _run(frames)
+    assert len(stances) == 1 and stances[0].side == "right"
+    assert np.linalg.norm(stances[0].xy - true) < 0.01
+
+
+def test_closing_and_reopening():
+    p = np.array([1.0, 0.08])
+    params = StanceParams(max_gap_s=0.1, reopen_s=0.5)
+    seen = [i for i in range(10)] + [i for i in range(15, 25)] + [i for i in range(50, 60)]
+    frames = [(i / FPS, [p], np.array([1.0, 0.0]), np.array([0.6, 0.0])) for i in seen]
+    stances = _run(frames, params)
+    # hidden 0.17 s (> max_gap, < reopen): same stance; hidden 0.83 s: a new stance
+    assert len(stances) == 2
+    assert stances[0].n_obs == 20 and stances[1].n_obs == 10
+
+
+def test_clutter_far_to_the_side_is_ignored():
+    p = np.array([1.0, 0.9])
+    frames = [(i / FPS, [p], np.array([1.0, 0.0]), np.array([0.6, 0.0])) for i in range(20)]
+    trk = StanceTracker()
+    for t, c, h, cam in frames:
+        assert trk.update(t, c, heading_W=h, p_CinW=cam) == [None]
+    assert trk.finish() == []
