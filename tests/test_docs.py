@@ -26,6 +26,7 @@ from gaitnet.config import config_keys
 from gaitnet.io.types import SessionCalibration
 from gaitnet.sim.config import SimConfig
 from gaitnet.training.predictor import PredictorTrainingConfig
+from gaitnet.vio.config import VioConfig
 
 ROOT = Path(__file__).parents[1]
 README = (ROOT / "README.md").read_text()
@@ -38,6 +39,7 @@ CONFIG_DOC = (ROOT / "docs" / "configs.md").read_text()
 CONFIG_SECTIONS: dict[str, type] = {
     "## Simulator": SimConfig,
     "## Motion predictor training": PredictorTrainingConfig,
+    "## Visual-inertial filter": VioConfig,
     "## Recorded session": SessionCalibration,
 }
 EXTRA_ROWS = {SessionCalibration: {"format_version": ("int", "required")}}

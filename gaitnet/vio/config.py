@@ -5,8 +5,7 @@ Sections: ``imu`` (noise densities), ``init`` (:class:`~gaitnet.vio.initialise.I
 (:class:`~gaitnet.vio.odometry.OdometryParams`), ``tags``
 (:class:`~gaitnet.vio.apriltags.AprilTagParams`), ``floor``
 (:class:`~gaitnet.vio.floor.FloorParams`), ``feet`` (:class:`~gaitnet.vio.feet.FootParams`),
-``stance`` (:class:`~gaitnet.vio.stance_tracker.StanceParams`), ``smoother`` and
-``gait``.
+``stance`` (:class:`~gaitnet.vio.stance_tracker.StanceParams`) and ``gait``.
 """
 
 from __future__ import annotations
@@ -23,7 +22,7 @@ from gaitnet.vio.initialise import InitParams
 from gaitnet.vio.odometry import OdometryParams
 from gaitnet.vio.stance_tracker import StanceParams
 
-__all__ = ["FilterParams", "GaitParams", "ImuNoiseParams", "SmootherParams", "VioConfig"]
+__all__ = ["FilterParams", "GaitParams", "ImuNoiseParams", "VioConfig"]
 
 
 @dataclass(frozen=True)
@@ -95,13 +94,6 @@ class FilterParams:
 
 
 @dataclass(frozen=True)
-class SmootherParams:
-    """``enabled``: run the smoother after the filter (sec. 3.5)."""
-
-    enabled: bool = True
-
-
-@dataclass(frozen=True)
 class GaitParams:
     """Steady strides (:mod:`gaitnet.vio.gait`): ``max_stride_time_s`` [s] (a normal stride
     lasts 1.0–1.4 s; 2.5 s allows very slow walkers) and ``max_stance_time_s`` [s] (a stance
@@ -127,7 +119,6 @@ class VioConfig:
     floor: FloorParams = field(default_factory=FloorParams)
     feet: FootParams = field(default_factory=FootParams)
     stance: StanceParams = field(default_factory=StanceParams)
-    smoother: SmootherParams = field(default_factory=SmootherParams)
     gait: GaitParams = field(default_factory=GaitParams)
 
     def imu_noise(self, calib: SessionCalibration) -> ImuNoise:
