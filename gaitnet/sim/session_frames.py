@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import pickle
 from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
@@ -135,10 +136,10 @@ def _slot_maps(buf, cam) -> dict[str, np.ndarray]:
     return maps
 
 
-def _init_worker(job: FrameJob, slots: list) -> None:
+def _init_worker(job: bytes, slots: list) -> None:
     global _JOB, _SLOTS
     cv2.setNumThreads(1)
-    _JOB, _SLOTS = job, slots
+    _JOB, _SLOTS = pickle.loads(job), slots
 
 
 def _work(k: int, exposure: float) -> FrameOut:
@@ -209,7 +210,8 @@ def render_frames(job: FrameJob, workers: int | None = None) -> Iterator[FrameOu
         return
     ctx = _context()
     slots = [ctx.RawArray("B", _slot_size(cam)) for _ in range(AE_LATENCY)]
-    with ctx.Pool(min(workers, AE_LATENCY), _init_worker, (job, slots)) as pool:
+    blob = pickle.dumps(job, pickle.HIGHEST_PROTOCOL)  # once, not once per worker
+    with ctx.Pool(min(workers, AE_LATENCY), _init_worker, (blob, slots)) as pool:
         pending: deque = deque(
             pool.apply_async(_work, (k, exposure_of(k))) for k in range(min(n, AE_LATENCY))
         )
