@@ -147,6 +147,16 @@ CASES: list[tuple[str, list[str], str]] = [
         "ignored explicit argument",
     ),
     # evaluate
+    ("vio-missing-args", ["vio"], "gaitnet vio: error: the following arguments"),
+    ("vio-missing-out", ["vio", "{session}"], "required: --out"),
+    ("vio-session-missing", ["vio", "{missing}", "--out", "{tmp}/out"], "{missing}"),
+    ("vio-out-is-file", ["vio", "{session}", "--out", "{file}"], "{file}"),
+    ("vio-bad-key", ["vio", "{session}", "--out", "{tmp}/out", "filter.nope=1"], "filter.nope"),
+    (
+        "vio-bad-value",
+        ["vio", "{session}", "--out", "{tmp}/out", "filter.foot_std_m=-1"],
+        "foot_std_m",
+    ),
     ("evaluate-missing-args", ["evaluate"], "gaitnet evaluate: error: the following arguments"),
     ("evaluate-missing-session", ["evaluate", "{dir}"], "required: --session"),
     ("evaluate-result-missing", ["evaluate", "{missing}", "--session", "{session}"], "{missing}"),
