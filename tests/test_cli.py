@@ -6,6 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from oneline import assert_one_line_exit
 
 import gaitnet
@@ -102,9 +103,23 @@ def test_simulate_unknown_config_key_one_line(tmp_path: Path) -> None:
     )
 
 
-def test_sigterm_during_simulate_cleans_up(tmp_path: Path) -> None:
-    """SIGTERM while rendering: exit 143, one 'terminated' line, no output and no staging
-    folder left behind (the signal arrives as KeyboardInterrupt, so cleanup runs)."""
+@pytest.mark.parametrize(
+    ("signame", "delay_s", "returncode", "last_line"),
+    [
+        ("SIGTERM", 0.3, 143, "gaitnet simulate: terminated"),
+        ("SIGTERM", 0.0, 143, "gaitnet simulate: terminated"),  # workers starting
+        ("SIGINT", 0.0, 130, "gaitnet simulate: interrupted"),
+        ("SIGINT", 1.0, 130, "gaitnet simulate: interrupted"),
+    ],
+)
+def test_signal_during_simulate_cleans_up(
+    tmp_path: Path, signame: str, delay_s: float, returncode: int, last_line: str
+) -> None:
+    """SIGTERM to the process, or Ctrl-C (SIGINT to its whole process group, the worker
+    processes and their forkserver included), while workers start or frames render: exit
+    143 / 130, the CLI's one line last, no traceback from any process, no output and no
+    staging folder left behind (the signal arrives as KeyboardInterrupt, so cleanup runs)."""
+    import os
     import signal
     import time
 
@@ -123,15 +138,20 @@ def test_sigterm_during_simulate_cleans_up(tmp_path: Path) -> None:
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        start_new_session=True,  # its own process group, as in a terminal
     )
     deadline = time.monotonic() + 120
     while not any(p.name.startswith(".") for p in tmp_path.iterdir()):  # staging folder
         assert proc.poll() is None and time.monotonic() < deadline, "never started writing"
         time.sleep(0.02)
-    time.sleep(0.3)
-    proc.send_signal(signal.SIGTERM)
+    time.sleep(delay_s)
+    if signame == "SIGINT":
+        os.killpg(proc.pid, signal.SIGINT)
+    else:
+        proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 143, err
-    assert err.strip().splitlines()[-1] == "gaitnet simulate: terminated"
+    assert proc.returncode == returncode, err
+    assert err.strip().splitlines()[-1] == last_line, err
     assert "Traceback" not in err
+    time.sleep(0.5)  # a worker or forkserver that outlived the CLI would still be writing
     assert list(tmp_path.iterdir()) == []

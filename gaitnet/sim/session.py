@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Iterable
+from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -159,20 +160,23 @@ def simulate_session(
     writer = SessionWriter(out_dir, calibration, overwrite=overwrite)
     try:
         gt = GroundTruthWriter(writer.staging / "groundtruth", cfg.output.labels, writer.write_png)
-        outs: Iterable[FrameOut] = render_frames(job, workers)
-        if progress is not None:  # only now: a progress bar must not precede an early error
-            outs = progress(outs, len(times))
-        for out in outs:
-            k = out.index
-            writer.add_frame(int(t_ns[k]), out.rgb, out.depth_m)
-            gt.add_frame(int(t_ns[k]), out.label, out.instance)
-            checks.extend((int(t_ns[k]), *row) for row in out.marker_rows)
-            exposures[k] = out.exposure, out.exposure_s
-            if k in preview_idx:
-                preview_rows.append(
-                    [out.rgb, colourise_depth(out.depth_m), colourise_labels(out.label)]
-                )
-                captions.append(f"t = {times[k]:.2f} s")
+        # closing(): on an interrupt the worker pool stops here, before the error propagates
+        # (a generator left to the garbage collector stops it after the CLI's last line)
+        with closing(render_frames(job, workers)) as rendered:
+            outs: Iterable[FrameOut] = rendered
+            if progress is not None:  # only now: a progress bar must not precede an early error
+                outs = progress(outs, len(times))
+            for out in outs:
+                k = out.index
+                writer.add_frame(int(t_ns[k]), out.rgb, out.depth_m)
+                gt.add_frame(int(t_ns[k]), out.label, out.instance)
+                checks.extend((int(t_ns[k]), *row) for row in out.marker_rows)
+                exposures[k] = out.exposure, out.exposure_s
+                if k in preview_idx:
+                    preview_rows.append(
+                        [out.rgb, colourise_depth(out.depth_m), colourise_labels(out.label)]
+                    )
+                    captions.append(f"t = {times[k]:.2f} s")
         writer.set_imu(imu)
         atomic_write_text(
             writer.staging / "groundtruth" / "exposure.csv",

@@ -26,8 +26,11 @@ from __future__ import annotations
 import multiprocessing
 import os
 import pickle
+import signal
+import threading
 from collections import deque
 from collections.abc import Iterator
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, replace
 
 import cv2
@@ -138,6 +141,9 @@ def _slot_maps(buf, cam) -> dict[str, np.ndarray]:
 
 def _init_worker(job: bytes, slots: list) -> None:
     global _JOB, _SLOTS
+    # Ctrl-C reaches the whole process group: the main process stops the pool (its
+    # ``terminate``), so a worker ignores SIGINT rather than print a traceback of its own
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     cv2.setNumThreads(1)
     _JOB, _SLOTS = pickle.loads(job), slots
 
@@ -176,11 +182,54 @@ def start_workers(workers: int | None = None) -> None:
     """Start the worker processes' forkserver now when :func:`render_frames` will use one
     (it imports the simulator meanwhile, on another CPU); optional."""
     workers = default_workers() if workers is None else int(workers)
-    ctx = _context()
-    if min(workers, AE_LATENCY) > 1 and ctx.get_start_method() == "forkserver":
-        from multiprocessing import forkserver
+    if min(workers, AE_LATENCY) > 1:
+        _start_forkserver(_context())
 
+
+def _start_forkserver(ctx: multiprocessing.context.BaseContext) -> None:
+    """Start ``ctx``'s forkserver, if it uses one and none runs, with SIGINT ignored.
+
+    The forkserver is in the terminal's process group, so Ctrl-C reaches it too; Python keeps
+    a SIGINT ignore inherited from its parent, so it imports the simulator undisturbed and
+    exits when the main process does. The main process ignores SIGINT only for the
+    milliseconds the start takes (the main thread only: elsewhere signals cannot be changed).
+    """
+    if ctx.get_start_method() != "forkserver":
+        return
+    from multiprocessing import forkserver
+
+    if threading.current_thread() is not threading.main_thread():
         forkserver.ensure_running()
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        forkserver.ensure_running()
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_DFL if previous is None else previous)
+
+
+@contextmanager
+def _interrupts_deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM while worker processes start, then deliver the first one.
+
+    A signal that interrupts the main process mid-way through sending a new worker its job
+    leaves that worker reading a truncated pickle (it prints a traceback after the CLI's
+    last line); held until the pool exists, the signal stops the pool in order instead.
+    Only the main thread may change signal handlers: elsewhere nothing is held.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.signal(s, lambda signum, _frame: caught.append(signum)) for s in held}
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, signal.SIG_DFL if handler is None else handler)
+        if caught:
+            signal.raise_signal(caught[0])
 
 
 def render_frames(job: FrameJob, workers: int | None = None) -> Iterator[FrameOut]:
@@ -209,9 +258,14 @@ def render_frames(job: FrameJob, workers: int | None = None) -> Iterator[FrameOu
             yield measured(render_one(job, k, exposure_of(k)))
         return
     ctx = _context()
+    _start_forkserver(ctx)
     slots = [ctx.RawArray("B", _slot_size(cam)) for _ in range(AE_LATENCY)]
     blob = pickle.dumps(job, pickle.HIGHEST_PROTOCOL)  # once, not once per worker
-    with ctx.Pool(min(workers, AE_LATENCY), _init_worker, (blob, slots)) as pool:
+    with ExitStack() as stack:
+        with _interrupts_deferred():
+            pool = stack.enter_context(
+                ctx.Pool(min(workers, AE_LATENCY), _init_worker, (blob, slots))
+            )
         pending: deque = deque(
             pool.apply_async(_work, (k, exposure_of(k))) for k in range(min(n, AE_LATENCY))
         )
