@@ -115,19 +115,22 @@ def pose_error(T_est: np.ndarray, T_true: np.ndarray) -> tuple[float, float, np.
 
 # ---------------------------------------------------------------------------- tags
 
+_CV_DEFAULT = AprilTagParams(
+    upsample=1, corner_refinement="none", error_correction_rate=0.6, max_tag_error_px=1e9
+)
 ARUCO_SETTINGS = {
-    "opencv-default-x1": AprilTagParams(upsample=1, corner_refinement="none"),
-    "x1-subpix": AprilTagParams(upsample=1),
-    "x1-small-win": AprilTagParams(
-        upsample=1,
+    "opencv-default-x1": _CV_DEFAULT,
+    "x1-small-win": replace(
+        _CV_DEFAULT,
         adaptive_thresh_win_max=15,
         adaptive_thresh_win_step=4,
         min_marker_perimeter_rate=0.01,
     ),  # fmt: skip
-    "x2-none": AprilTagParams(corner_refinement="none"),
-    "x2-subpix (default)": AprilTagParams(),
-    "x2-contour": AprilTagParams(corner_refinement="contour"),
-    "x3-subpix": AprilTagParams(upsample=3),
+    "x2-none": replace(_CV_DEFAULT, upsample=2),
+    "x2-subpix": replace(_CV_DEFAULT, upsample=2, corner_refinement="subpix"),
+    "x2-contour": replace(_CV_DEFAULT, upsample=2, corner_refinement="contour"),
+    "x4-contour-ec0.8": AprilTagParams(upsample=4),
+    "x3-contour-ec0.8 (def)": AprilTagParams(),
 }
 
 
@@ -205,7 +208,7 @@ def bench_tags(truths: list[Truth], pupil: bool) -> None:
             perr.append(dp)
             aerr.append(da)
             nees.append(float(e @ np.linalg.solve(obs.cov6, e)))
-    _tag_row("x2-subpix + ROI guess", ntag, perr, aerr, nees, ms)
+    _tag_row("default + ROI guess", ntag, perr, aerr, nees, ms)
     if pupil:
         for dec, sig in ((1.0, 0.0), (1.0, 0.8), (2.0, 0.0)):
             det = _pupil_detector(dec, sig)

@@ -61,10 +61,11 @@ class AprilTagParams:
     ``benchmarks/bench_detectors.py`` prints the comparison.
     """
 
-    upsample: int = 4
+    upsample: int = 3
     """Detect on the image enlarged by this integer factor (bicubic). At 640×480 the tags are
-    ~14 px wide: OpenCV's defaults at ×1 decode ~13 of a sheet's 35, ×2 ~31, ×4 ~34; with
-    contour refinement the median position error falls from 4.9 mm (×2) to 2.4 mm (×4)."""
+    ~14 px wide: OpenCV's defaults at ×1 decode ~13 of a sheet's 35, ×2 ~31, ×3 ~34; with
+    contour refinement the median position error falls from 12 mm (×1) and 4.8 mm (×2) to
+    3.3 mm (×3; ×4 is no better and slower). Tuned on det_s200–s202 standing frames."""
     adaptive_thresh_win_min: int = 3
     """``adaptiveThreshWinSizeMin`` (OpenCV default 3)."""
     adaptive_thresh_win_max: int = 23
@@ -92,10 +93,12 @@ class AprilTagParams:
     max_reprojection_rms_px: float = 1.5
     """Reject a pose whose corner reprojection RMS is above this [px] (a wrong id or a blurred
     frame; standing frames in simulation give ~0.1–0.3 px)."""
-    corner_sigma_px: float = 0.5
+    corner_sigma_px: float = 0.25
     """Smallest corner noise standard deviation [px] used for ``ε1`` (3.27). ``ε1`` is the larger
-    of this squared and the fit's unbiased residual variance; 0.5 px keeps the covariance
-    honest on simulated standing frames (benchmark: normalised pose errors)."""
+    of this squared and the fit's unbiased residual variance. On det_s200–s202 standing frames
+    0.5 px gave a mean normalised pose error (NEES, 6 dof) of 1.0, i.e. a covariance 6× too
+    large; 0.25 px gives ~4: still a little conservative, for the errors that are not white
+    (blur, rendering, the sheet's print)."""
 
 
 @dataclass(frozen=True)
