@@ -13,6 +13,7 @@ import pytest
 
 from gaitnet.cli import main
 from gaitnet.config import load_config
+from gaitnet.evaluation.metrics import ate_yaw_aligned, match_times
 from gaitnet.io import open_session
 from gaitnet.io.trajectory import read_tum
 from gaitnet.io.types import Frame, ImuSamples
@@ -86,10 +87,24 @@ def walk(tmp_path_factory) -> Path:
     return out
 
 
-def test_walk_strides_and_stance_feet_match_the_truth(walk: Path, tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def walk_result(walk: Path):
+    """The default run (filter then smoother) on the walk."""
+    return run_vio(open_session(walk), VioConfig())
+
+
+def _ate(walk: Path, t_s: np.ndarray, T_WfromC: np.ndarray) -> float:
+    truth = np.loadtxt(walk / "groundtruth" / "camera_frames.tum")
+    i, j = match_times(np.round(t_s * 1e9), np.round(truth[:, 0] * 1e9))
+    return ate_yaw_aligned(T_WfromC[i, :3, 3], truth[j, 1:4])
+
+
+def test_walk_strides_and_stance_feet_match_the_truth(
+    walk: Path, walk_result, tmp_path: Path
+) -> None:
     import csv
 
-    result = run_vio(open_session(walk), VioConfig())
+    result = walk_result
     assert result.initialisation == "apriltag" and _finite(result)
     events = list(csv.DictReader((walk / "groundtruth" / "events.csv").open()))
     soles = np.array([[float(e["sole_x_m"]), float(e["sole_y_m"])] for e in events])
@@ -110,6 +125,47 @@ def test_walk_strides_and_stance_feet_match_the_truth(walk: Path, tmp_path: Path
     t, T = read_tum(out / "camera_frames.tum")
     assert len(t) == len(open_session(walk)) and np.all(np.isfinite(T))
     assert (out / "trajectory.png").stat().st_size > 10_000
+
+
+def test_the_smoother_improves_on_the_filter(walk: Path, walk_result) -> None:
+    """Sec. 3.5: smoothing all frames with every measurement the filter accepted gives a body
+    trajectory closer to the truth than the filter's, and it lands in ``camera_frames.tum``
+    (``T_WfromC``); the stance feet it reports are the smoothed landmarks."""
+    r = walk_result
+    assert r.smoother["ran"] and r.T_WfromC_smoothed is not None
+    assert r.T_WfromC is r.T_WfromC_smoothed
+    ate_smoothed = _ate(walk, r.t_s, r.T_WfromC_smoothed)
+    ate_filter = _ate(walk, r.t_s, r.T_WfromC_filter)
+    assert ate_smoothed < ate_filter
+    assert ate_smoothed < 0.02
+    costs = r.smoother["cost_per_iteration"]
+    assert costs[-1] < costs[0]  # Gauss–Newton from the filter's estimates lowers the cost
+    by_id = {f.landmark_id: f for f in r.stance_feet_filter}
+    moved = [np.linalg.norm(f.xy - by_id[f.landmark_id].xy) for f in r.stance_feet]
+    assert len(moved) == len(by_id) and max(moved) > 0.0
+
+
+def test_smoother_keys_act(tiny_sim_session: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``smoother.enabled=false`` reports the filter's estimates; the iteration keys reach
+    the smoother's options (their effect: tests/test_vio_smoother.py)."""
+    import gaitnet.vio.run as run_module
+
+    source = open_session(tiny_sim_session)
+    off = run_vio(source, load_config(VioConfig, None, ["smoother.enabled=false"]))
+    assert off.T_WfromC_smoothed is None and off.smoother == {}
+    assert off.T_WfromC is off.T_WfromC_filter
+    assert [f.xy.tolist() for f in off.stance_feet] == [
+        f.xy.tolist() for f in off.stance_feet_filter
+    ]
+    seen = []
+    real_smooth = run_module.smooth
+    monkeypatch.setattr(
+        run_module, "smooth", lambda rec, opts: seen.append(opts) or real_smooth(rec, opts)
+    )
+    keys = ["smoother.max_iterations=7", "smoother.step_tol=0.125"]
+    on = run_vio(source, load_config(VioConfig, None, keys))
+    assert on.smoother["ran"] and on.T_WfromC_smoothed is not None
+    assert [(o.max_iterations, o.step_tol) for o in seen] == [(7, 0.125)]
 
 
 def test_without_tags_the_filter_starts_from_gravity_and_the_floor(walk: Path) -> None:

@@ -228,6 +228,22 @@ def test_smoother_is_more_accurate_than_the_filter(walk) -> None:
     np.testing.assert_allclose(T_WfromC[7], result.T_WfromI[7] @ invert_T(rec.T_CfromI), atol=1e-12)
 
 
+def test_iteration_options_act(walk) -> None:
+    """``max_iterations`` caps the Gauss–Newton iterations (each lowers the cost on this
+    walk: the cost evaluated at each end point); ``step_tol`` stops them once the largest step
+    is below it."""
+    capped = [
+        smooth(
+            walk.record, SmootherOptions(max_iterations=n, step_tol=1e-12, final_evaluation=True)
+        )
+        for n in (1, 3)
+    ]
+    assert [r.iterations for r in capped] == [1, 3] and not any(r.converged for r in capped)
+    assert capped[1].cost[-1] < capped[0].cost[-1]
+    loose = smooth(walk.record, SmootherOptions(max_iterations=5, step_tol=1e3))
+    assert loose.iterations == 1 and loose.converged
+
+
 def test_large_problem_stays_sparse(monkeypatch: pytest.MonkeyPatch) -> None:
     """No dense (n × n) matrix on a 10 s, 30 Hz problem: the Jacobian is CSR with O(n)
     entries, nothing is densified, and the LU of the normal matrix fills only its band."""

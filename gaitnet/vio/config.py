@@ -5,7 +5,7 @@ Sections: ``imu`` (noise densities), ``init`` (:class:`~gaitnet.vio.initialise.I
 (:class:`~gaitnet.vio.odometry.OdometryParams`), ``tags``
 (:class:`~gaitnet.vio.apriltags.AprilTagParams`), ``floor``
 (:class:`~gaitnet.vio.floor.FloorParams`), ``feet`` (:class:`~gaitnet.vio.feet.FootParams`),
-``stance`` (:class:`~gaitnet.vio.stance_tracker.StanceParams`) and ``gait``.
+``stance`` (:class:`~gaitnet.vio.stance_tracker.StanceParams`), ``smoother`` and ``gait``.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from gaitnet.vio.initialise import InitParams
 from gaitnet.vio.odometry import OdometryParams
 from gaitnet.vio.stance_tracker import StanceParams
 
-__all__ = ["FilterParams", "GaitParams", "ImuNoiseParams", "VioConfig"]
+__all__ = ["FilterParams", "GaitParams", "ImuNoiseParams", "SmootherParams", "VioConfig"]
 
 
 @dataclass(frozen=True)
@@ -94,6 +94,27 @@ class FilterParams:
 
 
 @dataclass(frozen=True)
+class SmootherParams:
+    """The smoother over the whole session (thesis sec. 3.5; :mod:`gaitnet.vio.smoother`).
+
+    ``enabled``: run it after the filter (``camera_frames.tum``, ``stance_feet.csv`` and
+    ``strides.csv`` are then the smoothed estimates; off: the filter's). ``max_iterations``:
+    Gauss–Newton iterations from the filter's estimates (1 is the thesis's single linear
+    solve; the second moves the estimate by the linearisation error of the first, cm on a
+    walk, the third by far less than a millimetre). ``step_tol``: stop earlier when the
+    largest step component (rad, m, m/s) is below it.
+    """
+
+    enabled: bool = True
+    max_iterations: int = 3
+    step_tol: float = 1e-5
+
+    def __post_init__(self) -> None:
+        check_int_range("max_iterations", self.max_iterations, 1)
+        check_positive("step_tol", self.step_tol)
+
+
+@dataclass(frozen=True)
 class GaitParams:
     """Steady strides (:mod:`gaitnet.vio.gait`): ``max_stride_time_s`` [s] (a normal stride
     lasts 1.0–1.4 s; 2.5 s allows very slow walkers) and ``max_stance_time_s`` [s] (a stance
@@ -119,6 +140,7 @@ class VioConfig:
     floor: FloorParams = field(default_factory=FloorParams)
     feet: FootParams = field(default_factory=FootParams)
     stance: StanceParams = field(default_factory=StanceParams)
+    smoother: SmootherParams = field(default_factory=SmootherParams)
     gait: GaitParams = field(default_factory=GaitParams)
 
     def imu_noise(self, calib: SessionCalibration) -> ImuNoise:

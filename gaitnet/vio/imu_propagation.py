@@ -82,11 +82,15 @@ class ImuNoiseLike(Protocol):
 class PropagationInfo:
     """What one :func:`propagate_to` call did: ``n_steps`` sub-steps; ``max_step_s`` the longest
     (an IMU gap shows here); ``held_s`` time outside the IMU stream, integrated with the first or
-    last reading held constant (0 in a healthy session)."""
+    last reading held constant (0 in a healthy session); ``Phi``, ``Q`` the lifted transition
+    and noise (15, 15) it applied to the IMU block of ``P`` (thesis (3.8), (3.9); None when the
+    interval was too short to integrate)."""
 
     n_steps: int
     max_step_s: float
     held_s: float
+    Phi: np.ndarray | None = None
+    Q: np.ndarray | None = None
 
 
 def integrate_readings(
@@ -244,4 +248,4 @@ def propagate_to(
     Phi, Q = lift(F, step_noise(F, h, noise))
     state.imu = end
     covariance.propagate(state, Phi, Q)
-    return PropagationInfo(len(h), float(h.max()), held)
+    return PropagationInfo(len(h), float(h.max()), held, Phi, Q)

@@ -83,6 +83,8 @@ def summary(result: VioResult) -> dict[str, object]:
             "initialisation": result.initialisation,
             "initialisation_note": result.initialisation_note,
             "smoothed": result.T_WfromC_smoothed is not None,
+            "smoother": result.smoother,
+            "gait_filter": summarise(result.strides_filter),
             "measurements_used": dict(sorted(result.used.items())),
             "measurements_skipped": {
                 kind: dict(sorted(c.items())) for kind, c in sorted(result.skipped.items())

@@ -29,12 +29,17 @@ class StanceFoot:
 
 @dataclass
 class VioResult:
-    """Trajectories at the frame times ``t_s`` (n,) [s, session clock]: the filter's IMU and
-    colour-camera poses ``T_WfromI_filter``/``T_WfromC_filter`` (n, 4, 4), the smoothed ones
-    (None when the smoother is off), the IMU-only dead-reckoning camera poses (same
-    initialisation, no visual update), stance feet, strides, and what happened on the way:
-    ``initialisation`` (``"apriltag"`` or ``"gravity_floor"``) with a sentence saying how,
-    per-update counts of used and skipped measurements with reasons, timings [s]."""
+    """Trajectories at the times ``t_s`` (n,) [s, session clock] of the frames the filter
+    processed (``session_index`` (n,): their frame numbers; frames before the initialising one
+    and frames whose time does not advance are not processed, and counted in ``skipped``):
+    the filter's IMU and colour-camera poses ``T_WfromI_filter``/``T_WfromC_filter``
+    (n, 4, 4) with the filter's IMU-position covariance ``cov_p_IinW_filter`` (n, 3, 3), the
+    smoothed ones (None when the smoother is off), the IMU-only dead-reckoning camera poses
+    (same initialisation, no visual update); stance feet and strides (smoothed when the
+    smoother ran) and the filter's own (``stance_feet_filter``, ``strides_filter``); and what
+    happened on the way: ``initialisation`` (``"apriltag"`` or ``"gravity_floor"``) with a
+    sentence saying how, per-update counts of used and skipped measurements with reasons,
+    timings [s], and the smoother's diagnostics ``smoother`` (empty when it did not run)."""
 
     t_s: np.ndarray
     T_WfromI_filter: np.ndarray
@@ -46,6 +51,11 @@ class VioResult:
     strides: list[Stride]
     initialisation: str
     initialisation_note: str
+    session_index: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    cov_p_IinW_filter: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
+    stance_feet_filter: list[StanceFoot] = field(default_factory=list)
+    strides_filter: list[Stride] = field(default_factory=list)
+    smoother: dict[str, object] = field(default_factory=dict)
     used: Counter = field(default_factory=Counter)
     skipped: dict[str, Counter] = field(default_factory=dict)
     timings_s: dict[str, float] = field(default_factory=dict)

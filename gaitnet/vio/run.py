@@ -14,9 +14,18 @@ Per frame (thesis Algorithm 1, with the tag update in the loop as thesis-notes s
 5. stochastic cloning of the pose for the next frame's odometry; a health check (a NaN or a
    covariance that is not positive semi-definite stops the run with one clear error).
 
+Every accepted measurement, the IMU interval between frames and the initialisation are
+recorded (:class:`~gaitnet.vio.records.FilterRecorder`); after the last frame the smoother
+(thesis sec. 3.5, :mod:`gaitnet.vio.smoother`) re-estimates all frames, the biases and the
+stance-foot landmarks from that record, and the gait parameters are computed from the
+smoothed landmarks (the filter's are kept beside them). A smoother that fails (a
+non-finite residual, an unconstrained variable) is logged and the filter's estimates are
+reported instead, with the reason in the summary.
+
 A measurement that cannot be made or fails its χ² gate is skipped, and counted with its reason
-in :class:`~gaitnet.vio.result.VioResult`. An IMU-only dead-reckoning run from the same
-initial state is kept as a baseline.
+in :class:`~gaitnet.vio.result.VioResult`; so is a frame before the initialising one or one
+whose time does not advance. An IMU-only dead-reckoning run from the same initial state is
+kept as a baseline.
 """
 
 from __future__ import annotations
@@ -35,6 +44,7 @@ from gaitnet.geometry import make_T
 from gaitnet.io.types import Frame, SessionSource
 from gaitnet.vio import covariance
 from gaitnet.vio.config import VioConfig
+from gaitnet.vio.errors import FilterDivergedError
 from gaitnet.vio.feet import detect_foot_candidates
 from gaitnet.vio.floor import fit_floor_depth
 from gaitnet.vio.gait import Stance, strides_from_stances
@@ -42,7 +52,9 @@ from gaitnet.vio.imu_propagation import propagate_to
 from gaitnet.vio.initialise import initialise, up_in_camera
 from gaitnet.vio.measurement import Measurement
 from gaitnet.vio.odometry import FrameOdometry
+from gaitnet.vio.records import FilterRecorder
 from gaitnet.vio.result import StanceFoot, VioResult
+from gaitnet.vio.smoother import SmootherOptions, SmootherResult, smooth
 from gaitnet.vio.state import FilterState
 
 log = logging.getLogger(__name__)
@@ -64,11 +76,16 @@ class _Landmark:
     std_xy: np.ndarray = field(default_factory=lambda: np.zeros(2))
 
 
+def _without_numbers(reason: str) -> str:
+    """A reason with its numbers replaced by ``#`` (counts group by reason)."""
+    return re.sub(r"[-+]?\d+(\.\d+)?(e[-+]?\d+)?", "#", reason)
+
+
 def _reason(up: covariance.UpdateResult) -> str:
     """A rejected update's reason without its numbers (counts group by reason)."""
     if np.isfinite(up.chi2) and "chi2" in up.reason:
         return "outside the chi2 gate"
-    return re.sub(r"[-+]?\d+(\.\d+)?(e[-+]?\d+)?", "#", up.reason) or "rejected"
+    return _without_numbers(up.reason) or "rejected"
 
 
 def _freeze(state: FilterState, lm_id: int, lm: _Landmark) -> None:
@@ -130,9 +147,12 @@ def run_vio(source: SessionSource, cfg: VioConfig, progress: Progress | None = N
     def skip(kind: str, reason: str) -> None:
         skipped.setdefault(kind, Counter())[reason] += 1
 
-    n = len(source)
-    T_WfromI_f = np.zeros((n, 4, 4))
-    T_WfromC_b = np.zeros((n, 4, 4))
+    recorder = FilterRecorder(T_CfromI, gravity)
+    recorder.set_prior(state)
+    T_WfromI_f: list[np.ndarray] = []
+    T_WfromC_b: list[np.ndarray] = []
+    cov_p: list[np.ndarray] = []
+    processed: list[int] = []
     prev: Frame | None = None
     tags_initialised = init.method == "apriltag"
     clock["initialise"] += time.perf_counter() - tic
@@ -140,11 +160,22 @@ def run_vio(source: SessionSource, cfg: VioConfig, progress: Progress | None = N
     for frame in _frames(source, progress):
         k = frame.index
         t = (frame.t_ns - t_ref_ns) * 1e-9
+        if k < init.frame_index:
+            skip("frame", "before the initialising frame")
+            continue
+        if k != init.frame_index and t <= state.imu.t_s:
+            skip("frame", "time does not advance")
+            continue
         tic = time.perf_counter()
-        if t > state.imu.t_s:
-            propagate_to(state, imu, t, noise, gravity_mps2=gravity, t_ref_ns=t_ref_ns)
+        if k != init.frame_index:
+            before = state.imu.copy()
+            info = propagate_to(state, imu, t, noise, gravity_mps2=gravity, t_ref_ns=t_ref_ns)
             propagate_to(baseline, imu, t, noise, gravity_mps2=gravity, t_ref_ns=t_ref_ns)
             covariance.check_healthy(state)  # a corrupt IMU sample stops here, not later
+            if info.Phi is None or info.Q is None:  # an interval too short to integrate
+                recorder.add_propagation(before, state.imu, np.eye(15), np.zeros((15, 15)))
+            else:
+                recorder.add_propagation(before, state.imu, info.Phi, info.Q)
         clock["propagation"] += time.perf_counter() - tic
 
         # --- visual odometry between the previous frame and this one (3.11)–(3.21)
@@ -161,10 +192,11 @@ def run_vio(source: SessionSource, cfg: VioConfig, progress: Progress | None = N
                 up = gated_update(m, cfg.filter.vo_gate_probability)
                 if up.accepted:
                     result_used["vo"] += 1
+                    recorder.add_vo(vo.R, vo.t, vo.cov6)
                 else:
                     skip("vo", _reason(up))
             else:
-                skip("vo", vo.reason or "odometry failed")
+                skip("vo", _without_numbers(vo.reason) or "odometry failed")
             clock["vo_update"] += time.perf_counter() - tic
 
         # --- AprilTag update (3.27)–(3.34); the first pose initialised the state
@@ -175,18 +207,22 @@ def run_vio(source: SessionSource, cfg: VioConfig, progress: Progress | None = N
             if obs is not None:
                 cov_I = imu_pose_from_camera(obs.T_WfromC, obs.cov6, T_CfromI)[1]
                 eps2 = cfg.filter.end_sheet_std_m**2 if obs.board != init.board else 0.0
+                use_attitude = not tags_initialised
                 m = tag_measurement(
                     state,
                     T_CfromI,
                     obs.T_WfromC,
                     cov_I,
                     end_sheet_eps2=eps2,
-                    use_attitude=not tags_initialised,
+                    use_attitude=use_attitude,
                 )
                 up = gated_update(m, cfg.filter.tag_gate_probability)
                 if up.accepted:
                     result_used["tag"] += 1
                     tags_initialised = True
+                    recorder.add_tag(
+                        obs.T_WfromC, cov_I, end_sheet_eps2=eps2, use_attitude=use_attitude
+                    )
                 else:
                     skip("tag", _reason(up))
             clock["tags"] += time.perf_counter() - tic
@@ -220,6 +256,7 @@ def run_vio(source: SessionSource, cfg: VioConfig, progress: Progress | None = N
                     covariance.augment_landmark(state, a.stance_id, aug)
                     landmarks[a.stance_id] = _Landmark(a.side, t, t)
                     result_used["foot_new"] += 1
+                    recorder.add_foot(a.stance_id, cand.p_FinC, R3, is_first=True)
                     continue
                 m = foot_measurement(state, T_CfromI, a.stance_id, cand.p_FinC, R3)
                 up = gated_update(m, cfg.filter.foot_gate_probability)
@@ -228,52 +265,121 @@ def run_vio(source: SessionSource, cfg: VioConfig, progress: Progress | None = N
                     lm.t_last_s = t
                     lm.n_obs += 1
                     result_used["foot"] += 1
+                    recorder.add_foot(a.stance_id, cand.p_FinC, R3)
                 else:
                     skip("foot", _reason(up))
             for lm_id in list(state.landmarks):
                 if t - landmarks[lm_id].t_last_s > cfg.filter.marginalise_after_s:
                     _freeze(state, lm_id, landmarks[lm_id])
+                    recorder.set_landmark(lm_id, state.landmarks[lm_id])
                     covariance.marginalise_landmark(state, lm_id)
             clock["feet_update"] += time.perf_counter() - tic
 
         covariance.check_healthy(state)
+        recorder.add_frame(state, session_index=k)
         covariance.clone(state)
-        T_WfromI_f[k] = _T_WfromI(state)
-        T_WfromC_b[k] = _T_WfromI(baseline) @ T_IfromC
+        processed.append(k)
+        T_WfromI_f.append(_T_WfromI(state))
+        T_WfromC_b.append(_T_WfromI(baseline) @ T_IfromC)
+        cov_p.append(state.P[3:6, 3:6].copy())
         prev = frame
 
+    if not processed:
+        raise SessionError("no frame could be processed after the initialising one")
     for lm_id in list(state.landmarks):
         _freeze(state, lm_id, landmarks[lm_id])
     sides = {s.id: s.side for s in tracker.finish()}
+    feet_filter = _stance_feet(landmarks, sides, cfg, t_ref_ns)
+    strides_filter = _strides(feet_filter, cfg)
 
-    feet = [
+    smoothed: SmootherResult | None = None
+    smoother_info: dict[str, object] = {}
+    if cfg.smoother.enabled:
+        tic = time.perf_counter()
+        smoothed, smoother_info = _smooth(recorder, cfg)
+        clock["smoother"] += time.perf_counter() - tic
+    feet, strides = feet_filter, strides_filter
+    if smoothed is not None:
+        for lm_id, lm in landmarks.items():
+            lm.xy = smoothed.landmarks[lm_id].copy()
+            cov = smoothed.landmark_cov.get(lm_id)
+            lm.std_xy = np.sqrt(np.clip(np.diag(cov), 0.0, None)) if cov is not None else lm.std_xy
+        feet = _stance_feet(landmarks, sides, cfg, t_ref_ns)
+        strides = _strides(feet, cfg)
+
+    T_WfromI_filter = np.array(T_WfromI_f)
+    return VioResult(
+        t_s=times_ns[processed].astype(np.float64) * 1e-9,
+        T_WfromI_filter=T_WfromI_filter,
+        T_WfromC_filter=T_WfromI_filter @ T_IfromC,
+        T_WfromC_imu_only=np.array(T_WfromC_b),
+        T_WfromI_smoothed=None if smoothed is None else smoothed.T_WfromI,
+        T_WfromC_smoothed=None if smoothed is None else smoothed.T_WfromC,
+        stance_feet=feet,
+        strides=strides,
+        initialisation=init.method,
+        initialisation_note=init.note,
+        session_index=np.array(processed, dtype=np.int64),
+        cov_p_IinW_filter=np.array(cov_p),
+        stance_feet_filter=feet_filter,
+        strides_filter=strides_filter,
+        smoother=smoother_info,
+        used=result_used,
+        skipped=skipped,
+        timings_s=dict(clock),
+    )
+
+
+def _stance_feet(
+    landmarks: dict[int, _Landmark], sides: dict[int, str], cfg: VioConfig, t_ref_ns: int
+) -> list[StanceFoot]:
+    """The reported stance feet: landmarks observed at least ``min_foot_observations`` times,
+    with the tracker's final side, on the session clock."""
+    return [
         StanceFoot(
             i,
             sides.get(i, lm.side),
             lm.t_first_s + t_ref_ns * 1e-9,
             lm.t_last_s + t_ref_ns * 1e-9,
-            lm.xy,
-            lm.std_xy,
+            lm.xy.copy(),
+            lm.std_xy.copy(),
             lm.n_obs,
         )
         for i, lm in landmarks.items()
         if lm.n_obs >= cfg.filter.min_foot_observations
     ]
+
+
+def _strides(feet: list[StanceFoot], cfg: VioConfig) -> list:
     stances = [Stance(f.side, f.t_first_s, f.t_last_s, f.xy) for f in feet]
-    strides = strides_from_stances(stances, cfg.gait.max_stride_time_s, cfg.gait.max_stance_time_s)
-    T_WfromC_f = T_WfromI_f @ T_IfromC
-    return VioResult(
-        t_s=times_ns.astype(np.float64) * 1e-9,
-        T_WfromI_filter=T_WfromI_f,
-        T_WfromC_filter=T_WfromC_f,
-        T_WfromC_imu_only=T_WfromC_b,
-        T_WfromI_smoothed=None,
-        T_WfromC_smoothed=None,
-        stance_feet=feet,
-        strides=strides,
-        initialisation=init.method,
-        initialisation_note=init.note,
-        used=result_used,
-        skipped=skipped,
-        timings_s=dict(clock),
+    return strides_from_stances(stances, cfg.gait.max_stride_time_s, cfg.gait.max_stance_time_s)
+
+
+def _smooth(
+    recorder: FilterRecorder, cfg: VioConfig
+) -> tuple[SmootherResult | None, dict[str, object]]:
+    """The smoother on the filter's record, and its diagnostics for the summary; a failure is
+    logged and reported (``ran: false`` with the reason), and the filter's estimates stand."""
+    options = SmootherOptions(
+        max_iterations=cfg.smoother.max_iterations, step_tol=cfg.smoother.step_tol
     )
+    try:
+        record = recorder.finish()
+        result = smooth(record, options)
+    except (FilterDivergedError, ValueError, np.linalg.LinAlgError, RuntimeError) as err:
+        log.warning("the smoother failed (%s); reporting the filter's estimates", err)
+        return None, {"ran": False, "reason": str(err)}
+    if not (np.all(np.isfinite(result.p_IinW)) and np.all(np.isfinite(result.q))):
+        log.warning("the smoother gave non-finite poses; reporting the filter's estimates")
+        return None, {"ran": False, "reason": "non-finite smoothed poses"}
+    info: dict[str, object] = {
+        "ran": True,
+        "iterations": result.iterations,
+        "converged": result.converged,
+        "cost_per_iteration": list(result.cost),
+        "chi2_per_term": {k: v for k, v in result.chi2.items()},
+        "n_residuals": dict(result.n_residuals),
+        "gyro_bias_rad_s": result.b_g.tolist(),
+        "accel_bias_mps2": result.b_a.tolist(),
+    }
+    return result, info
