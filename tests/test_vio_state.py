@@ -276,3 +276,11 @@ def test_check_healthy_names_what_failed() -> None:
     s.P[0, 1] += 1.0
     with pytest.raises(FilterDivergedError, match="symmetric"):
         check_healthy(s)
+
+
+@pytest.mark.parametrize("dof", [1, 2, 3, 6, 9])
+@pytest.mark.parametrize("probability", [0.9, 0.99, 0.999])
+def test_chi2_gate_equals_the_chi2_quantile(dof: int, probability: float) -> None:
+    from scipy.stats import chi2
+
+    assert chi2_gate(dof, probability) == pytest.approx(chi2.ppf(probability, dof), rel=1e-10)
