@@ -37,6 +37,30 @@ def test_round_trip_is_exact(tiny_session: Path) -> None:
     assert board.tag_centre_in_board(7) == pytest.approx([0.124, 0.072, 0.0])
 
 
+def test_frames_read_ahead_keeps_order_errors_and_stops_its_thread(tiny_session: Path) -> None:
+    """``frames()`` decodes ahead in a thread: the same frames as ``frame(i)``; a frame that
+    became unreadable after opening raises when it is reached, after the frames before it;
+    closing the iterator early leaves no reading thread behind."""
+    import threading
+
+    session = SessionFolder(tiny_session)
+    assert len(session) > 3
+    for i, frame in enumerate(session.frames()):
+        np.testing.assert_array_equal(frame.rgb, session.frame(i).rgb)
+    it = session.frames()
+    next(it)
+    it.close()
+    assert not [t for t in threading.enumerate() if t.name.startswith("gaitnet-read")]
+    broken = sorted((tiny_session / "color").iterdir())[2]
+    broken.write_bytes(b"not a png")
+    seen = []
+    with pytest.raises(SessionError, match=broken.name):
+        for frame in session.frames():
+            seen.append(frame.index)
+    assert seen == [0, 1]
+    assert not [t for t in threading.enumerate() if t.name.startswith("gaitnet-read")]
+
+
 def test_frames_load_lazily(tiny_session: Path) -> None:
     session = open_session(tiny_session)
     (tiny_session / "color" / f"{session.frame_times_ns[2]}.png").write_bytes(

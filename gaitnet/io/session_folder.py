@@ -11,7 +11,10 @@ groundtruth/      optional (simulator)
 Opening a folder validates everything that is cheap to check (session.yaml, the IMU stream,
 that every colour frame has its depth frame, each PNG's size, type and completeness from its
 header); pixels are decoded only when a frame is requested. Frame file names are decimal
-nanoseconds in ``[0, 2**63)``.
+nanoseconds in ``[0, 2**63)``. :meth:`SessionFolder.frames` decodes up to :data:`READ_AHEAD`
+frames ahead in one background thread (PNG decoding releases the GIL, so it runs on another
+core while the caller works on the current frame); the frames, their order and any error are
+those of :meth:`SessionFolder.frame`.
 
 Symbolic links: a link inside the session folder whose target lies outside it (``session.yaml``,
 ``imu.csv``, ``color/``, ``depth/`` or a frame file) is refused with a
@@ -44,6 +47,9 @@ from gaitnet.io.session_yaml import read_session_yaml, session_yaml_text
 from gaitnet.io.types import T_NS_MAX, Frame, ImuSamples, SessionCalibration
 
 log = logging.getLogger(__name__)
+
+#: Frames :meth:`SessionFolder.frames` decodes ahead of the one it yields.
+READ_AHEAD = 2
 
 _T_NS_NAME = re.compile(r"^[0-9]{1,19}$")
 
@@ -157,8 +163,20 @@ class SessionFolder:
         return Frame(index=index, t_ns=int(self._times[index]), rgb=rgb, depth_m=depth)
 
     def frames(self) -> Iterator[Frame]:
-        for i in range(len(self)):
-            yield self.frame(i)
+        """Every frame in order, decoded :data:`READ_AHEAD` frames ahead in a background
+        thread (module docstring); an unreadable frame raises when it is reached."""
+        n = len(self)
+        with ThreadPoolExecutor(1, thread_name_prefix="gaitnet-read") as pool:
+            ahead: list[Future] = [pool.submit(self.frame, i) for i in range(min(n, READ_AHEAD))]
+            try:
+                for i in range(n):
+                    frame = ahead.pop(0).result()
+                    if i + READ_AHEAD < n:
+                        ahead.append(pool.submit(self.frame, i + READ_AHEAD))
+                    yield frame
+            finally:  # stopped early (an error, or the caller closed the generator)
+                for future in ahead:
+                    future.cancel()
 
 
 class SessionWriter:
