@@ -148,9 +148,7 @@ class GroundTruthWriter:
         write_tum(root / "pelvis_frames.tum", t_key, T_WP, "pelvis (SMPL joint 0) at frame times")
         T_WI = make_T(imu.R_WfromI, imu.p_IinW)
         write_tum(root / "imu_imurate.tum", imu.t_s, T_WI, "IMU at true IMU sample times")
-        write_tum(
-            root / "camera_imurate.tum", imu.t_s, T_WI @ T_IfromC, "camera at true IMU times"
-        )
+        write_tum(root / "camera_imurate.tum", imu.t_s, T_WI @ T_IfromC, "camera at true IMU times")
 
         root_orient, trans, joint_aa = walk.smpl_pose(times)
         _save_npz(
