@@ -244,6 +244,12 @@ def _cmd_vio(args: argparse.Namespace) -> int:
     info = summary(result)
     gait = info["gait"]
     print(f"initialisation: {result.initialisation_note}")
+    if result.smoother.get("ran"):
+        print(f"smoother: {result.smoother['iterations']} Gauss–Newton iterations (sec. 3.5)")
+    elif result.smoother:
+        print(f"smoother failed ({result.smoother['reason']}): the filter's estimates follow")
+    else:
+        print("smoother off: the filter's estimates follow")
     print(
         f"{info['frames']} frames, {info['duration_s']:.1f} s, "
         f"camera path {info['distance_m']:.2f} m; "
