@@ -1,5 +1,7 @@
 """Stance-foot candidates (gaitnet.vio.feet, thesis (3.22)–(3.26)) and the stance tracker."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -107,6 +109,60 @@ def test_foot_at_the_image_border_is_flagged():
     depth = _render(T, [_shoe(1.5, 0.0)])
     cands = detect_foot_candidates(depth, K, _plane(T))
     assert len(cands) == 1 and cands[0].at_border
+
+
+def _holes(T, depth, keep):
+    """``depth`` with the pixels that see a box (not the floor) set invalid (0) where
+    ``keep(x_W, y_W)`` is False: the clustered holes of a black shoe (docs/simulator.md)."""
+    H, W = SHAPE
+    v, u = np.mgrid[0:H, 0:W]
+    rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones((H, W))], -1)
+    p_W = (rays * depth[..., None]) @ T[:3, :3].T + T[:3, 3]
+    floor = _render(T, [])
+    on_box = (depth > 0) & (depth < floor - 1e-4)
+    out = depth.copy()
+    out[on_box & ~keep(p_W[..., 0], p_W[..., 1])] = 0.0
+    return out
+
+
+def test_a_shoe_cut_by_a_depth_hole_is_one_candidate_at_its_centre():
+    # a black shoe whose depth has a 3 cm band of holes across it, 7 cm behind the toe: the toe
+    # piece is a separate component; alone, the larger piece puts the foot point ~7 cm back
+    # (a "toe" that is not the toe) and the toe piece becomes a second candidate.
+    T = _pose(height=1.1)
+    true = np.array([0.9, -0.08])
+    toe = true[0] + 0.13
+    depth = _holes(T, _render(T, [_shoe(*true)]), lambda x, y: np.abs(x - (toe - 0.055)) > 0.015)
+    params = FootParams(shoe_length_m=0.26, toe_margin_m=0.0)
+    (cand,) = detect_foot_candidates(depth, K, _plane(T), params)
+    assert np.linalg.norm(_to_world(T, cand.p_FinC)[:2] - true) < 0.01
+    cut = detect_foot_candidates(depth, K, _plane(T), replace(params, hole_bridge_m=0.0))
+    assert len(cut) == 2  # without bridging: the back piece first, ~7 cm short
+    assert _to_world(T, cut[0].p_FinC)[0] < true[0] - 0.05
+
+
+def test_bridging_does_not_join_two_feet():
+    # two standing shoes 5 cm apart with the floor between them invalid (a shadow): bridged,
+    # the pair is too wide for one foot and each shoe stays a candidate
+    T = _pose(height=1.1)
+    left, right = np.array([0.8, 0.075]), np.array([0.8, -0.075])
+    depth = _render(T, [_shoe(*left), _shoe(*right)])
+    floor = _render(T, [])
+    H, W = SHAPE
+    v, u = np.mgrid[0:H, 0:W]
+    rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones((H, W))], -1)
+    p_W = (rays * floor[..., None]) @ T[:3, :3].T + T[:3, 3]
+    gap = (np.abs(p_W[..., 1]) < 0.03) & (np.abs(p_W[..., 0] - 0.8) < 0.1) & (depth == floor)
+    depth[gap] = 0.0
+    params = FootParams(shoe_length_m=0.26, toe_margin_m=0.0)
+    cands = detect_foot_candidates(depth, K, _plane(T), params)
+    assert len(cands) == 2
+    pts = sorted((_to_world(T, c.p_FinC)[:2] for c in cands), key=lambda p: p[1])
+    for p, true in zip(pts, (right, left), strict=True):
+        assert np.linalg.norm(p - true) < 0.01
+    # without the width limit the bridged pair is one "foot" between the two
+    (joined,) = detect_foot_candidates(depth, K, _plane(T), replace(params, max_width_m=1.0))
+    assert abs(_to_world(T, joined.p_FinC)[1]) < 0.03
 
 
 # ------------------------------------------------------------------ stance tracker

@@ -1,10 +1,20 @@
 """Stance-foot candidates from the depth image and the floor plane (thesis (3.22)–(3.26)).
 
 Pixels whose height above the floor lies in ``[h_min, h_max]`` (3.24) are grouped into
-8-connected components (``cv.connectedComponentsWithStats``); components whose area on the
-floor is outside the size limits are dropped and the two largest are kept. Each gets an
-ellipse fitted to its outline (``cv.fitEllipse``, the "foot edge" of sec. 3.3.2) and a foot
-point.
+8-connected components (``cv.connectedComponentsWithStats``); components whose area, length or
+width on the floor is outside the size limits are dropped and the two largest are kept. Each
+gets an ellipse fitted to its outline (``cv.fitEllipse``, the "foot edge" of sec. 3.3.2) and a
+foot point.
+
+Depth holes. A dark shoe's depth is full of clustered holes (a D4xx cannot match a black
+surface: up to 60 % of its pixels invalid); a band of holes across the shoe cuts it into
+pieces, and the largest piece alone, without the toe, puts the foot point several cm back, a
+different amount every frame. Pieces are therefore joined across invalid pixels that lie in
+gaps up to ``hole_bridge_m`` wide (the morphological closing of the foot pixels, with the gap
+converted to pixels at the median depth of the foot pixels); a seen floor pixel never joins
+anything, so two feet stay apart unless a hole (a stereo shadow) spans the floor between them.
+A joined group that fails the size limits (e.g. two feet side by side: too wide) is tried
+piece by piece instead.
 
 Foot point: the measured foot position (3.26) is compared with a landmark on ``z = 0`` (3.35),
 so it must lie ON the floor (thesis notes). The component's 3-D points are projected
@@ -25,7 +35,9 @@ by its height times the tangent of the viewing angle) are kept for comparison
 
 from __future__ import annotations
 
+import heapq
 import logging
+import math
 from dataclasses import dataclass
 
 import cv2 as cv
@@ -60,6 +72,14 @@ class FootParams:
     max_length_m: float = 0.45
     """Longest extent of a component on the floor [m] (2·√λ_max of its points × 2): a shoe is
     ≤ 0.33 m; two feet merged side by side or a long object is rejected."""
+    max_width_m: float = 0.2
+    """Widest extent of a component across its main axis on the floor [m] (2·√λ_min × 2): one
+    shoe gives 0.09–0.15 m (simulated sessions), two feet side by side ≥ 0.25 m (sole centres
+    at least a shoe width apart); it matters for pieces joined across holes."""
+    hole_bridge_m: float = 0.06
+    """Depth holes up to this wide [m, at the foot pixels' median depth] join the pieces of
+    foot pixels around them (module docstring): a black shoe's hole clusters cut it with gaps
+    of 2–6 cm (simulated sessions, tuning seeds); 0 disables."""
     min_pixels: int = 20
     """Components smaller than this many pixels (working resolution) are not examined (speed;
     20 px at 320×240 is < 0.002 m² at 2 m)."""
@@ -110,6 +130,129 @@ def _plane_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return e1, np.cross(n, e1)
 
 
+def _groups(
+    mask: np.ndarray, labels: np.ndarray, n_lab: int, d: np.ndarray, Ks: np.ndarray, bridge_m: float
+) -> list[list[int]]:
+    """The foot-pixel components (labels ``1 … n_lab−1``) grouped across depth holes.
+
+    Invalid depth pixels inside the morphological closing of ``mask`` (gaps up to
+    ``bridge_m`` at the median depth of the foot pixels) connect the components on both sides;
+    a valid pixel never does (the floor between two feet is seen)."""
+    singles = [[lab] for lab in range(1, n_lab)]
+    on = mask.astype(bool)
+    if bridge_m <= 0 or n_lab <= 2:
+        return singles
+    r = math.ceil(0.5 * bridge_m * Ks[0, 0] / float(np.median(d[on])))
+    if r < 1:
+        return singles
+    kernel = cv.getStructuringElement(cv.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    closed = cv.morphologyEx(mask, cv.MORPH_CLOSE, kernel).astype(bool)
+    invalid = ~(d > 0)  # zero or NaN: no depth
+    conn = (on | (closed & invalid)).astype(np.uint8)
+    _, conn_labels = cv.connectedComponents(conn, connectivity=8)
+    group_of = np.zeros(n_lab, dtype=np.int64)
+    group_of[labels[on]] = conn_labels[on]
+    groups: dict[int, list[int]] = {}
+    for lab in range(1, n_lab):
+        groups.setdefault(int(group_of[lab]), []).append(lab)
+    return list(groups.values())
+
+
+@dataclass(frozen=True)
+class _Image:
+    """What every component's candidate is computed from (working resolution)."""
+
+    d: np.ndarray
+    labels: np.ndarray
+    stats: np.ndarray
+    K: np.ndarray
+    Ks: np.ndarray
+    s: int
+    shape_full: tuple[int, int]
+    plane: FloorPlane
+    e1: np.ndarray
+    e2: np.ndarray
+    fwd: np.ndarray
+    side: np.ndarray
+
+
+def _candidate(img: _Image, unit: list[int], params: FootParams) -> FootCandidate | None:
+    """The candidate of the foot pixels with labels ``unit`` (one component, or the pieces of
+    one split by depth holes), None when it fails the size limits (or the ray misses)."""
+    st = img.stats[unit]
+    x0 = int(st[:, cv.CC_STAT_LEFT].min())
+    y0 = int(st[:, cv.CC_STAT_TOP].min())
+    x1 = int((st[:, cv.CC_STAT_LEFT] + st[:, cv.CC_STAT_WIDTH]).max())
+    y1 = int((st[:, cv.CC_STAT_TOP] + st[:, cv.CC_STAT_HEIGHT]).max())
+    area_px = int(st[:, cv.CC_STAT_AREA].sum())
+    lab_sub = img.labels[y0:y1, x0:x1]
+    sub = lab_sub == unit[0] if len(unit) == 1 else np.isin(lab_sub, unit)
+    Ks, K, s, plane = img.Ks, img.K, img.s, img.plane
+    vv, uu = np.nonzero(sub)
+    z = img.d[y0:y1, x0:x1][sub].astype(np.float64)
+    x_n = (uu + x0 - Ks[0, 2]) / Ks[0, 0]
+    y_n = (vv + y0 - Ks[1, 2]) / Ks[1, 1]
+    rays = np.stack([x_n, y_n, np.ones_like(x_n)], axis=1)
+    P = rays * z[:, None]
+    # Floor-projected area: a pixel at depth z on a floor-parallel surface covers
+    # z² / (fx fy) / |n·r| (r = (x_n, y_n, 1)); grazing rays are clamped at |n·r̂| ≥ 0.2.
+    n_dot = np.maximum(np.abs(rays @ plane.n_C), 0.2 * np.linalg.norm(rays, axis=1))
+    area = float(np.sum(z**2 / n_dot) / (Ks[0, 0] * Ks[1, 1]))
+    if not params.min_area_m2 <= area <= params.max_area_m2:
+        return None
+    Q = plane.project(P)
+    q2 = np.stack([Q @ img.e1, Q @ img.e2], axis=1)
+    c2 = q2.mean(axis=0)
+    cov = np.cov((q2 - c2).T) if len(q2) > 2 else np.eye(2) * 1e-6
+    evals, evecs = np.linalg.eigh(cov)
+    length = 4.0 * float(np.sqrt(max(evals[1], 0.0)))
+    width = 4.0 * float(np.sqrt(max(evals[0], 0.0)))
+    if length > params.max_length_m or width > params.max_width_m:
+        return None
+    axis_C = evecs[0, 1] * img.e1 + evecs[1, 1] * img.e2
+    if axis_C @ img.fwd < 0:
+        axis_C = -axis_C
+    contours, _ = cv.findContours(sub.astype(np.uint8), cv.RETR_EXTERNAL, cv.CHAIN_APPROX_NONE)
+    if len(unit) == 1:
+        cnt = max(contours, key=len).reshape(-1, 2).astype(np.float32)
+    else:  # the outline of all pieces
+        cnt = cv.convexHull(np.concatenate(contours).astype(np.float32)).reshape(-1, 2)
+    if len(cnt) >= 5:
+        (ecx, ecy), axes, ang = cv.fitEllipse(cnt)
+    else:
+        ecx, ecy, axes, ang = float(uu.mean()), float(vv.mean()), (1.0, 1.0), 0.0
+    # back to full-resolution pixels (pixel-centre model)
+    ecx_full = (ecx + x0) * s  # sample i of the decimated image is pixel s·i
+    ecy_full = (ecy + y0) * s
+    ellipse = ((float(ecx_full), float(ecy_full)), (axes[0] * s, axes[1] * s), float(ang))
+    if params.point_method == "toe":
+        lo_s, hi_s = np.percentile(Q @ img.side, [2.0, 98.0])
+        toe_f = float(np.percentile(Q @ img.fwd, 98.0))
+        back = 0.5 * params.shoe_length_m - params.toe_margin_m
+        p_F = (toe_f - back) * img.fwd + 0.5 * (lo_s + hi_s) * img.side - plane.h * plane.n_C
+    elif params.point_method == "centroid":
+        p_F = Q.mean(axis=0)
+    else:
+        ray = np.array([(ecx_full - K[0, 2]) / K[0, 0], (ecy_full - K[1, 2]) / K[1, 1], 1.0])
+        p_F = plane.intersect_ray(ray)
+        if p_F is None:
+            return None
+    b = params.border_px
+    H_full, W_full = img.shape_full
+    at_border = bool(x0 * s <= b or y0 * s <= b or x1 * s >= W_full - b or y1 * s >= H_full - b)
+    return FootCandidate(
+        p_FinC=p_F,
+        n_pixels=area_px,
+        area_m2=area,
+        ellipse=ellipse,
+        length_m=length,
+        width_m=width,
+        axis_C=axis_C,
+        at_border=at_border,
+        centroid_C=Q.mean(axis=0),
+    )
+
+
 def detect_foot_candidates(
     depth_m: np.ndarray, K: np.ndarray, plane: FloorPlane, params: FootParams | None = None
 ) -> list[FootCandidate]:
@@ -126,7 +269,7 @@ def detect_foot_candidates(
     K = np.asarray(K, dtype=np.float64)
     s = int(params.stride)
     d = np.asarray(depth_m, dtype=np.float32)
-    H_full, W_full = d.shape
+    shape_full = d.shape
     if s > 1:
         d = d[::s, ::s]
         Ks = K.copy()
@@ -142,83 +285,31 @@ def detect_foot_candidates(
     n_lab, labels, stats, _ = cv.connectedComponentsWithStats(mask, connectivity=8)
     if n_lab <= 1:
         return []
-    order = np.argsort(-stats[1:, cv.CC_STAT_AREA]) + 1
-    out: list[FootCandidate] = []
     e1, e2 = _plane_basis(plane.n_C)
     # walking direction: the optical axis projected on the floor (the camera faces forward)
     fwd = np.array([0.0, 0.0, 1.0]) - plane.n_C[2] * plane.n_C
     fwd /= np.linalg.norm(fwd)
-    side = np.cross(plane.n_C, fwd)
-    for lab in order:
-        x0, y0, w, h, area_px = stats[lab]
-        if area_px < params.min_pixels:
+    img = _Image(
+        d, labels, stats, K, Ks, s, shape_full, plane, e1, e2, fwd, np.cross(plane.n_C, fwd)
+    )
+    area = stats[:, cv.CC_STAT_AREA]
+    # largest first; a group of pieces that fails the size limits is tried piece by piece
+    units = [
+        (-int(area[g].sum()), i, g)
+        for i, g in enumerate(_groups(mask, labels, n_lab, d, Ks, params.hole_bridge_m))
+    ]
+    heapq.heapify(units)
+    tie = len(units)
+    out: list[FootCandidate] = []
+    while units and len(out) < params.max_candidates:
+        neg_px, _, unit = heapq.heappop(units)
+        if -neg_px < params.min_pixels:
             break
-        sub = labels[y0 : y0 + h, x0 : x0 + w] == lab
-        vv, uu = np.nonzero(sub)
-        z = d[y0 : y0 + h, x0 : x0 + w][sub].astype(np.float64)
-        u = uu + x0
-        v = vv + y0
-        x_n = (u - Ks[0, 2]) / Ks[0, 0]
-        y_n = (v - Ks[1, 2]) / Ks[1, 1]
-        rays = np.stack([x_n, y_n, np.ones_like(x_n)], axis=1)
-        P = rays * z[:, None]
-        # Floor-projected area: a pixel at depth z on a floor-parallel surface covers
-        # z² / (fx fy) / |n·r| (r = (x_n, y_n, 1)); grazing rays are clamped at |n·r̂| ≥ 0.2.
-        n_dot = np.maximum(np.abs(rays @ plane.n_C), 0.2 * np.linalg.norm(rays, axis=1))
-        area = float(np.sum(z**2 / n_dot) / (Ks[0, 0] * Ks[1, 1]))
-        if not params.min_area_m2 <= area <= params.max_area_m2:
-            continue
-        Q = plane.project(P)
-        q2 = np.stack([Q @ e1, Q @ e2], axis=1)
-        c2 = q2.mean(axis=0)
-        cov = np.cov((q2 - c2).T) if len(q2) > 2 else np.eye(2) * 1e-6
-        evals, evecs = np.linalg.eigh(cov)
-        length = 4.0 * float(np.sqrt(max(evals[1], 0.0)))
-        width = 4.0 * float(np.sqrt(max(evals[0], 0.0)))
-        if length > params.max_length_m:
-            continue
-        axis_C = evecs[0, 1] * e1 + evecs[1, 1] * e2
-        if axis_C @ fwd < 0:
-            axis_C = -axis_C
-        contours, _ = cv.findContours(sub.astype(np.uint8), cv.RETR_EXTERNAL, cv.CHAIN_APPROX_NONE)
-        cnt = max(contours, key=len).reshape(-1, 2).astype(np.float32)
-        if len(cnt) >= 5:
-            (ecx, ecy), axes, ang = cv.fitEllipse(cnt)
-        else:
-            ecx, ecy, axes, ang = float(uu.mean()), float(vv.mean()), (1.0, 1.0), 0.0
-        # back to full-resolution pixels (pixel-centre model)
-        ecx_full = (ecx + x0) * s  # sample i of the decimated image is pixel s·i
-        ecy_full = (ecy + y0) * s
-        ellipse = ((float(ecx_full), float(ecy_full)), (axes[0] * s, axes[1] * s), float(ang))
-        if params.point_method == "toe":
-            lo_s, hi_s = np.percentile(Q @ side, [2.0, 98.0])
-            toe_f = float(np.percentile(Q @ fwd, 98.0))
-            back = 0.5 * params.shoe_length_m - params.toe_margin_m
-            p_F = (toe_f - back) * fwd + 0.5 * (lo_s + hi_s) * side - plane.h * plane.n_C
-        elif params.point_method == "centroid":
-            p_F = Q.mean(axis=0)
-        else:
-            ray = np.array([(ecx_full - K[0, 2]) / K[0, 0], (ecy_full - K[1, 2]) / K[1, 1], 1.0])
-            p_F = plane.intersect_ray(ray)
-            if p_F is None:
-                continue
-        b = params.border_px
-        at_border = bool(
-            x0 * s <= b or y0 * s <= b or (x0 + w) * s >= W_full - b or (y0 + h) * s >= H_full - b
-        )
-        out.append(
-            FootCandidate(
-                p_FinC=p_F,
-                n_pixels=int(area_px),
-                area_m2=area,
-                ellipse=ellipse,
-                length_m=length,
-                width_m=width,
-                axis_C=axis_C,
-                at_border=at_border,
-                centroid_C=Q.mean(axis=0),
-            )
-        )
-        if len(out) >= params.max_candidates:
-            break
+        cand = _candidate(img, unit, params)
+        if cand is not None:
+            out.append(cand)
+        elif len(unit) > 1:
+            for lab in unit:
+                heapq.heappush(units, (-int(area[lab]), tie, [lab]))
+                tie += 1
     return out
