@@ -170,7 +170,6 @@ def _print_summary(summary: dict, outcomes: list[vp.SessionOutcome]) -> None:
     speed = summary["speed"]
     if speed:
         f = speed["filter_ms_per_frame"]
-        clock = "CPU" if speed["stages_are_cpu"] else "wall (run.py's clock could not be swapped)"
         print(
             f"\nSpeed ({speed['sessions']} sessions, one thread, {_cpu_model()}, "
             f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs)"
@@ -182,7 +181,7 @@ def _print_summary(summary: dict, outcomes: list[vp.SessionOutcome]) -> None:
         )
         stages = speed["filter_stages_ms_per_frame"]
         total = sum(stages.values())
-        print(f"  where the filter's time goes ({clock}, ms per frame, share):")
+        print("  where the filter's time goes (CPU, ms per frame, share):")
         for name, ms in sorted(stages.items(), key=lambda kv: -kv[1]):
             print(f"    {name:34s} {ms:6.2f}  {100 * ms / total:4.0f} %")
         s = speed["smoother_s"]

@@ -39,19 +39,17 @@ length. Three methods:
 **Time.** Every run uses one thread for OpenMP/BLAS/OpenCV (set by ``bench_vio.py`` before the
 imports). ``time.process_time`` around ``run_vio`` gives the CPU seconds of all threads (the
 session reader decodes PNGs ahead in a background thread: on one core that time counts);
-``time.thread_time`` the main thread's. The per-stage figures are ``VioResult.timings_s`` taken
-with the main thread's CPU clock instead of the wall clock (:func:`cpu_stage_clock`). Filter
-CPU = all threads − the smoother's stage; per frame = divided by the session's frame count.
+``time.thread_time`` the main thread's. The per-stage figures are ``VioResult.timings_s`` (the
+main thread's CPU seconds per stage). Filter CPU = all threads − the smoother's stage; per
+frame = divided by the session's frame count.
 """
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 import time
-import types
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -203,23 +201,6 @@ def ensure_session(
     return folder, time.perf_counter() - t0
 
 
-@contextlib.contextmanager
-def cpu_stage_clock() -> Iterator[bool]:
-    """Make ``run_vio``'s per-stage clock the calling thread's CPU time (module docstring);
-    yields False, changing nothing, when ``gaitnet.vio.run`` no longer times with
-    ``time.perf_counter`` (the stages are then wall seconds)."""
-    import gaitnet.vio.run as run_module
-
-    if getattr(run_module, "time", None) is not time:
-        yield False
-        return
-    run_module.time = types.SimpleNamespace(perf_counter=time.thread_time)  # type: ignore[attr-defined]
-    try:
-        yield True
-    finally:
-        run_module.time = time  # type: ignore[attr-defined]
-
-
 def stride_rows(strides: Sequence[Stride]) -> StrideRows:
     """Strides as :class:`StrideRows` (the columns ``strides.csv`` has: events at the stances'
     first observations)."""
@@ -299,7 +280,6 @@ class SessionOutcome:
     vo_skipped: int = 0
     cpu_s: dict[str, float] = field(default_factory=dict)
     stage_cpu_s: dict[str, float] = field(default_factory=dict)
-    stages_are_cpu: bool = True
     wall_s: float = 0.0
     speed_only: bool = False
 
@@ -355,26 +335,24 @@ def run_session(
         duration_s=float(times_ns[-1] - times_ns[0]) * 1e-9,
         speed_only=speed_only,
     )
-    with cpu_stage_clock() as stages_are_cpu:
-        wall0, cpu0, main0 = time.perf_counter(), time.process_time(), time.thread_time()
-        try:
-            result = run_vio(source, vio_cfg)
-        except Exception as err:  # a long benchmark goes on; a bug is logged with its trace
-            if isinstance(err, GaitnetError):
-                log.warning("%s: the run failed: %s", path, err)
-                out.failure = str(err)
-            else:
-                log.exception("%s: the run failed with a bug", path)
-                out.failure = f"bug: {type(err).__name__}: {err}"
-            for method in METHODS:
-                out.strides[method] = MethodStrides(unmatched_truth=len(ref))
-            return out
-        cpu, main = time.process_time() - cpu0, time.thread_time() - main0
-        out.wall_s = time.perf_counter() - wall0
+    wall0, cpu0, main0 = time.perf_counter(), time.process_time(), time.thread_time()
+    try:
+        result = run_vio(source, vio_cfg)
+    except Exception as err:  # a long benchmark goes on; a bug is logged with its trace
+        if isinstance(err, GaitnetError):
+            log.warning("%s: the run failed: %s", path, err)
+            out.failure = str(err)
+        else:
+            log.exception("%s: the run failed with a bug", path)
+            out.failure = f"bug: {type(err).__name__}: {err}"
+        for method in METHODS:
+            out.strides[method] = MethodStrides(unmatched_truth=len(ref))
+        return out
+    cpu, main = time.process_time() - cpu0, time.thread_time() - main0
+    out.wall_s = time.perf_counter() - wall0
     stages = {k: float(v) for k, v in result.timings_s.items()}
     smoother = stages.get("smoother", 0.0)
     out.stage_cpu_s = stages
-    out.stages_are_cpu = stages_are_cpu
     out.cpu_s = {
         "total": cpu,
         "main_thread": main,
@@ -512,7 +490,6 @@ def speed_summary(outcomes: Sequence[SessionOutcome]) -> dict[str, object]:
     long = [o for o in ran if o.speed_only]
     return {
         "sessions": len(ran),
-        "stages_are_cpu": all(o.stages_are_cpu for o in ran),
         "filter_ms_per_frame": {
             "mean": float(np.mean(per_frame)),
             "frame_weighted_mean": float(1e3 * sum(o.cpu_s["filter"] for o in ran) / frames.sum()),

@@ -39,7 +39,9 @@ class VioResult:
     smoother ran) and the filter's own (``stance_feet_filter``, ``strides_filter``); and what
     happened on the way: ``initialisation`` (``"apriltag"`` or ``"gravity_floor"``) with a
     sentence saying how, per-update counts of used and skipped measurements with reasons,
-    timings [s], and the smoother's diagnostics ``smoother`` (empty when it did not run)."""
+    CPU seconds of the calling thread per stage ``timings_s`` (the session reader's
+    read-ahead thread is not in them), and the smoother's diagnostics ``smoother`` (empty
+    when it did not run)."""
 
     t_s: np.ndarray
     T_WfromI_filter: np.ndarray
