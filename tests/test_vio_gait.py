@@ -85,3 +85,50 @@ def test_the_steadiness_limits_act() -> None:
     assert sum(s.steady for s in strides_from_stances(_walk(), max_stance_time_s=2.0)) == 7
     assert sum(s.steady for s in strides_from_stances(_walk(), 3.0, 2.0)) == 8
     assert sum(s.steady for s in strides_from_stances(_walk(), max_stride_time_s=1.0)) == 0
+
+
+def _split(stance: Stance, gap_s: float, shift: np.ndarray) -> list[Stance]:
+    """``stance`` reported as two: observations stop at a third of it, and resume ``gap_s``
+    later at a point moved by ``shift`` (a pose jump or a detector jump)."""
+    t_cut = stance.t_first_s + (stance.t_last_s - stance.t_first_s) / 3
+    return [
+        Stance(stance.side, stance.t_first_s, t_cut, stance.xy),
+        Stance(stance.side, t_cut + gap_s, stance.t_last_s, stance.xy + shift),
+    ]
+
+
+@pytest.mark.parametrize(
+    "gap_s, shift",
+    [
+        (0.1, [0.006, 0.0]),  # a pose jump between two frames (the end sheet's tag update)
+        (-0.1, [-0.06, 0.01]),  # two overlapping stances 6 cm apart (a detector jump)
+    ],
+)
+def test_one_foot_reported_as_two_stances_is_one_stance(gap_s: float, shift: list) -> None:
+    walk = _walk()
+    expected = strides_from_stances(walk)
+    for k in (4, len(walk) - 1):  # a stance in the walk, the last one
+        stances = walk[:k] + _split(walk[k], gap_s, np.array(shift)) + walk[k + 1 :]
+        strides = strides_from_stances(stances)
+        assert len(strides) == len(expected)  # without the merge: one stride of ~0 m more
+        for a, b in zip(strides, expected, strict=True):
+            assert (a.side, a.start.t_first_s, a.end.t_first_s) == (
+                b.side,
+                b.start.t_first_s,
+                b.end.t_first_s,
+            )
+            assert a.length_m == pytest.approx(b.length_m, abs=0.061)
+            assert a.steady == b.steady
+
+
+def test_a_foot_set_down_again_after_a_swing_is_a_new_stance() -> None:
+    walk = _walk()
+    k = len(walk) - 1
+    # lifted for 0.3 s (longer than min_swing_time_s) and put down at the same place: a stride
+    stepped = walk[:k] + _split(walk[k], 0.3, np.zeros(2)) + walk[k + 1 :]
+    assert len(strides_from_stances(stepped)) == len(strides_from_stances(walk)) + 1
+    assert len(strides_from_stances(stepped, min_swing_time_s=0.4)) == len(walk) - 2
+    # 0.1 s apart but 9 cm away: not one foot at one place (same_place_m)
+    jumped = walk[:k] + _split(walk[k], 0.1, np.array([0.09, 0.0])) + walk[k + 1 :]
+    assert len(strides_from_stances(jumped)) == len(strides_from_stances(walk)) + 1
+    assert len(strides_from_stances(jumped, same_place_m=0.1)) == len(walk) - 2

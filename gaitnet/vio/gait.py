@@ -14,6 +14,13 @@ based tools by the heel-strike → foot-flat delay (~0.1 s), differences of time
 - **step** ending a stride: from the latest stance of the other foot that began before the
   stride's last stance to that stance; ``step_length_m`` is the displacement along the stride's
   direction, ``step_width_m`` across it, ``step_time_s`` the difference of first times.
+- one foot's stance reported as two (consecutive stances of a side less than
+  ``min_swing_time_s`` apart in time and less than ``same_place_m`` apart on the floor: the
+  foot cannot have been lifted and set down again) is **one stance**: from the first one's
+  first time to the last one's last time, at the position of the one seen longer. This happens
+  when the pose estimate jumps during a stance (the end tag sheet comes into view and corrects
+  the drift: the foot's world point moves by cm and the tracker starts a new stance, seen in
+  simulation at the last step) or the detector's point jumps (a shoe cut by depth holes).
 - a stride is **steady** when its time is at most ``max_stride_time_s`` and neither of its
   stances was seen for longer than ``max_stance_time_s``; the others join a standing stance to
   the first or last step (gait initiation, termination) or bridge a pause, and are listed but
@@ -26,7 +33,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Stance", "Stride", "strides_from_stances", "summarise", "STRIDE_COLUMNS"]
+__all__ = [
+    "Stance",
+    "Stride",
+    "merge_split_stances",
+    "strides_from_stances",
+    "summarise",
+    "STRIDE_COLUMNS",
+]
 
 SIDES = ("left", "right")
 STRIDE_COLUMNS = (
@@ -127,12 +141,49 @@ def _step(stances: list[Stance], end: Stance, direction: np.ndarray) -> tuple[fl
     return length, width, end.t_first_s - prev.t_first_s
 
 
+def merge_split_stances(
+    stances: list[Stance], min_swing_time_s: float = 0.2, same_place_m: float = 0.08
+) -> list[Stance]:
+    """The stances with each foot's stance that was reported as two made one (module
+    docstring), ordered by first time.
+
+    ``min_swing_time_s`` [s]: a foot needs longer than this between leaving the floor and
+    resting on it again (swing lasts ~0.35–0.45 s at 0.6–1.7 m/s, and the filter sees a foot
+    from foot-flat to heel-off, ~0.5 s more); ``same_place_m`` [m]: closer than two feet can
+    rest side by side (their centres are at least a shoe width, ~0.1 m, apart)."""
+    merged: list[Stance] = []
+    for side in SIDES:
+        own = sorted((s for s in stances if s.side == side), key=lambda s: s.t_first_s)
+        for s in own:
+            prev = merged[-1] if merged and merged[-1].side == side else None
+            if (
+                prev is not None
+                and s.t_first_s - prev.t_last_s < min_swing_time_s
+                and float(np.linalg.norm(s.xy - prev.xy)) < same_place_m
+            ):
+                longer = max(prev, s, key=lambda x: x.t_last_s - x.t_first_s)
+                merged[-1] = Stance(
+                    side,
+                    min(prev.t_first_s, s.t_first_s),
+                    max(prev.t_last_s, s.t_last_s),
+                    longer.xy,
+                )
+            else:
+                merged.append(s)
+    return sorted(merged, key=lambda s: s.t_first_s)
+
+
 def strides_from_stances(
-    stances: list[Stance], max_stride_time_s: float = 2.5, max_stance_time_s: float = 1.2
+    stances: list[Stance],
+    max_stride_time_s: float = 2.5,
+    max_stance_time_s: float = 1.2,
+    min_swing_time_s: float = 0.2,
+    same_place_m: float = 0.08,
 ) -> list[Stride]:
-    """Strides (module docstring) of both sides, ordered by end time. Two stances of the same
-    side at the same time are an error of the caller (ValueError)."""
-    ordered = sorted(stances, key=lambda s: s.t_first_s)
+    """Strides (module docstring) of both sides, ordered by end time, from the stances after
+    :func:`merge_split_stances` (``min_swing_time_s``, ``same_place_m``). Two stances of the
+    same side at the same time are an error of the caller (ValueError)."""
+    ordered = merge_split_stances(stances, min_swing_time_s, same_place_m)
     strides: list[Stride] = []
     for side in SIDES:
         own = [s for s in ordered if s.side == side]
