@@ -5,8 +5,9 @@ For each session folder (made by ``gaitnet simulate``; its ``groundtruth/`` is r
 * **tags** on every standing frame (both feet flat at the start or end): decoded tags per frame
   (of the sheet's 35), camera-position and -attitude error of :func:`detect_board_pose` against
   ``camera_frames.tum``, the normalised error ``e^T cov^{-1} e`` (mean ≈ 6 when ``cov6`` is
-  honest), ms per frame; for several ``cv.aruco`` settings and, if importable,
-  ``pupil_apriltags`` (AprilTag 3) with the same pose solver;
+  honest), CPU ms per frame (one thread), with and without a pose guess (the filter's ROI search);
+  for the two corner detectors, ``cv.aruco`` and AprilTag 3 (``tags.detector``), and with
+  ``--all`` for more of their settings;
 * **floor** on every ``--step``-th frame: angle between the fitted and the true normal, error of
   the camera height ``h`` (the floor is z = 0 up to mm relief), ms per frame, with the up prior
   from the true attitude tilted by a random 5° (an accelerometer during walking);
@@ -17,8 +18,7 @@ For each session folder (made by ``gaitnet simulate``; its ``groundtruth/`` is r
   (recall), tracked stances that match a true one within 6 cm (precision), side accuracy.
 
     python benchmarks/bench_detectors.py SESSION [SESSION ...] [--parts tags floor feet stance]
-
-``pupil_apriltags`` is not a dependency: put it on ``PYTHONPATH`` for the comparison.
+        [--all]
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import csv  # noqa: E402
 import time  # noqa: E402
+from contextlib import contextmanager  # noqa: E402
 from dataclasses import dataclass, replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -40,11 +41,8 @@ import numpy as np  # noqa: E402
 from gaitnet.geometry.rotation import so3_exp, so3_log  # noqa: E402
 from gaitnet.io.session_folder import SessionFolder  # noqa: E402
 from gaitnet.io.trajectory import read_tum  # noqa: E402
-from gaitnet.io.types import tag_corners_in_board  # noqa: E402
-from gaitnet.vio.apriltags import (  # noqa: E402
-    AprilTagParams,
-    detect_board_pose,
-)
+from gaitnet.vio import apriltags  # noqa: E402
+from gaitnet.vio.apriltags import AprilTagParams, detect_board_pose  # noqa: E402
 from gaitnet.vio.feet import FootParams, detect_foot_candidates  # noqa: E402
 from gaitnet.vio.floor import FloorParams, fit_floor_depth  # noqa: E402
 
@@ -115,126 +113,104 @@ def pose_error(T_est: np.ndarray, T_true: np.ndarray) -> tuple[float, float, np.
 
 # ---------------------------------------------------------------------------- tags
 
-_CV_DEFAULT = AprilTagParams(
-    upsample=1, corner_refinement="none", error_correction_rate=0.6, max_tag_error_px=1e9
+#: aruco with its tuned settings (the corner noise floor that suits its corners: 0.25 px)
+_ARUCO = AprilTagParams(detector="aruco", corner_sigma_px=0.25)
+_CV_DEFAULT = replace(
+    _ARUCO, upsample=1, corner_refinement="none", error_correction_rate=0.6, max_tag_error_px=1e9
 )
-ARUCO_SETTINGS = {
-    "opencv-default-x1": _CV_DEFAULT,
-    "x1-small-win": replace(
-        _CV_DEFAULT,
-        adaptive_thresh_win_max=15,
-        adaptive_thresh_win_step=4,
-        min_marker_perimeter_rate=0.01,
-    ),  # fmt: skip
-    "x2-none": replace(_CV_DEFAULT, upsample=2),
-    "x2-subpix": replace(_CV_DEFAULT, upsample=2, corner_refinement="subpix"),
-    "x2-contour": replace(_CV_DEFAULT, upsample=2, corner_refinement="contour"),
-    "x4-contour-ec0.8": AprilTagParams(upsample=4),
-    "x3-contour-ec0.8 (def)": AprilTagParams(),
+
+#: name → (params, AprilTag 3 settings overriding apriltags.APRILTAG3_SETTINGS, max hamming,
+#: search with a pose guess). Without --all only the rows marked * run.
+# fmt: off
+TAG_SETTINGS: dict[str, tuple[AprilTagParams, dict, int | None, bool]] = {
+    "aruco opencv-default-x1": (_CV_DEFAULT, {}, None, False),
+    "aruco x1-small-win": (replace(_CV_DEFAULT, adaptive_thresh_win_max=15,
+                                   adaptive_thresh_win_step=4,
+                                   min_marker_perimeter_rate=0.01), {}, None, False),
+    "aruco x2-none": (replace(_CV_DEFAULT, upsample=2), {}, None, False),
+    "aruco x2-subpix": (replace(_CV_DEFAULT, upsample=2, corner_refinement="subpix"), {}, None,
+                        False),
+    "aruco x2-contour": (replace(_CV_DEFAULT, upsample=2, corner_refinement="contour"), {}, None,
+                         False),
+    "aruco x4-contour-ec0.8": (replace(_ARUCO, upsample=4), {}, None, False),
+    "*aruco x3-contour-ec0.8": (_ARUCO, {}, None, False),
+    "*aruco x3 + ROI guess": (_ARUCO, {}, None, True),
+    "apriltag3 quad_decimate2": (AprilTagParams(), {"quad_decimate": 2.0}, None, False),
+    "apriltag3 quad_sigma0.8": (AprilTagParams(), {"quad_sigma": 0.8}, None, False),
+    "apriltag3 no refine_edges": (AprilTagParams(), {"refine_edges": 0}, None, False),
+    "apriltag3 hamming 0": (AprilTagParams(), {}, 0, False),
+    "apriltag3 hamming <=1": (AprilTagParams(), {}, 1, False),
+    "apriltag3 corner_sigma0.25": (replace(AprilTagParams(), corner_sigma_px=0.25), {}, None,
+                                   True),
+    "apriltag3 corner_sigma0.35": (replace(AprilTagParams(), corner_sigma_px=0.35), {}, None,
+                                   True),
+    "apriltag3 corner_sigma0.5": (replace(AprilTagParams(), corner_sigma_px=0.5), {}, None,
+                                  True),
+    "*apriltag3": (AprilTagParams(), {}, None, False),
+    "*apriltag3 + ROI guess": (AprilTagParams(), {}, None, True),
 }
+# fmt: on
 
 
-def _pupil_detector(decimate: float, sigma: float):
+@contextmanager
+def _apriltag3_settings(settings: dict, max_hamming: int | None):
+    """Temporarily change the module's AprilTag 3 settings (the detector cache is keyed on
+    them)."""
+    old, old_h = dict(apriltags.APRILTAG3_SETTINGS), apriltags.APRILTAG3_MAX_HAMMING
+    apriltags.APRILTAG3_SETTINGS.update(settings)
+    if max_hamming is not None:
+        apriltags.APRILTAG3_MAX_HAMMING = max_hamming
     try:
-        import pupil_apriltags  # noqa: PLC0415  (optional, comparison only)
-    except ImportError:
-        return None
-    return pupil_apriltags.Detector(
-        families="tag36h11", nthreads=1, quad_decimate=decimate, quad_sigma=sigma,
-        refine_edges=1, decode_sharpening=0.25,
-    )  # fmt: skip
+        yield
+    finally:
+        apriltags.APRILTAG3_SETTINGS.clear()
+        apriltags.APRILTAG3_SETTINGS.update(old)
+        apriltags.APRILTAG3_MAX_HAMMING = old_h
 
 
-def pupil_pose(det, frame, calib):
-    """Board pose from pupil_apriltags corners (same PnP + covariance as cv.aruco's path)."""
-    gray = cv.cvtColor(frame.rgb, cv.COLOR_RGB2GRAY)
-    res = det.detect(gray)
-    board = calib.apriltag_boards[0]
-    best = None
-    for b in calib.apriltag_boards:
-        ids = [r for r in res if r.tag_id in b.tag_ids and r.hamming == 0]
-        if ids and (best is None or len(ids) > len(best[1])):
-            best = (b, ids)
-    if best is None or len(best[1]) < 2:
-        return None, 0
-    board, dets = best
-    # AprilTag 3 lists the corners (as read) top-right, top-left, bottom-left, bottom-right,
-    # pixel centres at +0.5 (checked against cv.aruco on the same tags): aruco order
-    # (tl, tr, br, bl) is [1, 0, 3, 2], minus 0.5 px.
-    img = np.concatenate([np.asarray(r.corners)[[1, 0, 3, 2]] - 0.5 for r in dets])
-    obj = np.concatenate([tag_corners_in_board(board, r.tag_id) for r in dets])
-    K = calib.color.K
-    ok, rvec, tvec = cv.solvePnP(obj, img, K, None, flags=cv.SOLVEPNP_IPPE)
-    rvec, tvec = cv.solvePnPRefineLM(obj, img, K, None, rvec, tvec)
-    T_CfromB = np.eye(4)
-    T_CfromB[:3, :3] = cv.Rodrigues(rvec)[0]
-    T_CfromB[:3, 3] = tvec.ravel()
-    return board.T_WfromBoard @ np.linalg.inv(T_CfromB), len(dets)
-
-
-def bench_tags(truths: list[Truth], pupil: bool) -> None:
-    print("\n== AprilTags on standing frames (35 tags per sheet) ==")
-    print(f"{'setting':22s} {'frames':>6s} {'tags/frame':>10s} {'pose ok':>7s} "
+def bench_tags(truths: list[Truth], all_settings: bool) -> None:
+    """Every setting on every standing frame; the settings take turns frame by frame, so that
+    a busy machine slows all of them alike. Times are the process's CPU time (one thread:
+    OpenCV and AprilTag 3 are set to one), which other processes inflate far less than the
+    wall clock."""
+    print("\n== AprilTags on standing frames (35 tags per sheet; CPU ms, one thread) ==")
+    print(f"{'setting':24s} {'frames':>6s} {'tags/frame':>10s} {'pose ok':>7s} "
           f"{'pos mm med/p95':>15s} {'att deg med/p95':>16s} {'NEES mean':>9s} "
-          f"{'ms':>6s}")  # fmt: skip
-    frames = [(tr, k) for tr in truths for k in standing_frames(tr)]
-    loaded = [(tr, tr.session.frame(int(k)), k) for tr, k in frames]
-    for name, params in ARUCO_SETTINGS.items():
-        ntag, perr, aerr, nees, ms = [], [], [], [], []
-        for tr, fr, k in loaded:
-            t0 = time.perf_counter()
-            obs = detect_board_pose(fr, tr.session.calibration, params)
-            ms.append(1e3 * (time.perf_counter() - t0))
-            ntag.append(0 if obs is None else obs.n_tags)
-            if obs is not None:
-                dp, da, e = pose_error(obs.T_WfromC, tr.T_WfromC[k])
-                perr.append(dp)
-                aerr.append(da)
-                nees.append(float(e @ np.linalg.solve(obs.cov6, e)))
-        _tag_row(name, ntag, perr, aerr, nees, ms)
-    # with a pose guess (ROI search), as in the filter
-    ntag, perr, aerr, nees, ms = [], [], [], [], []
+          f"{'ms med/p95':>11s}")  # fmt: skip
+    settings = {n.lstrip("*"): v for n, v in TAG_SETTINGS.items() if all_settings or n[0] == "*"}
+    stats = {name: ([], [], [], [], []) for name in settings}
     rng = np.random.default_rng(0)
-    for tr, fr, k in loaded:
-        T_guess = tr.T_WfromC[k].copy()
-        T_guess[:3, 3] += rng.normal(0, 0.02, 3)
-        T_guess[:3, :3] = T_guess[:3, :3] @ so3_exp(rng.normal(0, np.radians(1.0), 3))
-        t0 = time.perf_counter()
-        obs = detect_board_pose(fr, tr.session.calibration, AprilTagParams(), T_guess)
-        ms.append(1e3 * (time.perf_counter() - t0))
-        ntag.append(0 if obs is None else obs.n_tags)
-        if obs is not None:
-            dp, da, e = pose_error(obs.T_WfromC, tr.T_WfromC[k])
-            perr.append(dp)
-            aerr.append(da)
-            nees.append(float(e @ np.linalg.solve(obs.cov6, e)))
-    _tag_row("default + ROI guess", ntag, perr, aerr, nees, ms)
-    if pupil:
-        for dec, sig in ((1.0, 0.0), (1.0, 0.8), (2.0, 0.0)):
-            det = _pupil_detector(dec, sig)
-            if det is None:
-                print("pupil_apriltags not importable: comparison skipped")
-                break
-            ntag, perr, aerr, ms = [], [], [], []
-            for tr, fr, k in loaded:
-                t0 = time.perf_counter()
-                T, n = pupil_pose(det, fr, tr.session.calibration)
-                ms.append(1e3 * (time.perf_counter() - t0))
-                ntag.append(n)
-                if T is not None:
-                    dp, da, _ = pose_error(T, tr.T_WfromC[k])
+    for tr in truths:
+        calib = tr.session.calibration
+        for k in standing_frames(tr):
+            fr = tr.session.frame(int(k))
+            # a pose guess as the filter's prediction: 2 cm and 1° off
+            T_guess = tr.T_WfromC[k].copy()
+            T_guess[:3, 3] += rng.normal(0, 0.02, 3)
+            T_guess[:3, :3] = T_guess[:3, :3] @ so3_exp(rng.normal(0, np.radians(1.0), 3))
+            for name, (params, at3, max_hamming, guess) in settings.items():
+                ntag, perr, aerr, nees, ms = stats[name]
+                with _apriltag3_settings(at3, max_hamming):
+                    t0 = time.process_time()
+                    obs = detect_board_pose(fr, calib, params, T_guess if guess else None)
+                    ms.append(1e3 * (time.process_time() - t0))
+                ntag.append(0 if obs is None else obs.n_tags)
+                if obs is not None:
+                    dp, da, e = pose_error(obs.T_WfromC, tr.T_WfromC[k])
                     perr.append(dp)
                     aerr.append(da)
-            _tag_row(f"apriltag3 dec{dec:g} s{sig:g}", ntag, perr, aerr, [], ms)
+                    nees.append(float(e @ np.linalg.solve(obs.cov6, e)))
+    for name, row in stats.items():
+        _tag_row(name, *row)
 
 
 def _tag_row(name, ntag, perr, aerr, nees, ms) -> None:
     def mp(x, f):
         return f"{f * np.median(x):6.2f}/{f * np.percentile(x, 95):6.2f}" if x else "     -/     -"
 
-    print(f"{name:22s} {len(ntag):6d} {np.mean(ntag):10.1f} {len(perr):7d} {mp(perr, 1e3):>15s} "
+    print(f"{name:24s} {len(ntag):6d} {np.mean(ntag):10.1f} {len(perr):7d} {mp(perr, 1e3):>15s} "
           f"{mp(aerr, 1):>16s} {np.mean(nees) if nees else float('nan'):9.1f} "
-          f"{np.median(ms):6.1f}")  # fmt: skip
+          f"{np.median(ms):5.1f}/{np.percentile(ms, 95):5.1f}")  # fmt: skip
 
 
 # ---------------------------------------------------------------------------- floor
@@ -396,12 +372,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("sessions", nargs="+")
     ap.add_argument("--parts", nargs="+", default=["tags", "floor", "feet", "stance"])
     ap.add_argument("--step", type=int, default=3, help="floor: every n-th frame")
-    ap.add_argument("--no-pupil", action="store_true")
+    ap.add_argument("--all", action="store_true", help="tags: every setting, not only *")
     args = ap.parse_args(argv)
     truths = [load_truth(p) for p in args.sessions]
     fparams = FloorParams()
     if "tags" in args.parts:
-        bench_tags(truths, pupil=not args.no_pupil)
+        bench_tags(truths, all_settings=args.all)
     if "floor" in args.parts:
         bench_floor(truths, args.step, fparams)
     if "feet" in args.parts:

@@ -1,9 +1,13 @@
 """AprilTag board pose and covariance (gaitnet.vio.apriltags, thesis (3.27)–(3.34))."""
 
+import sys
+
 import cv2 as cv
 import numpy as np
 import pytest
 
+from gaitnet.config import load_config
+from gaitnet.errors import ConfigError
 from gaitnet.geometry.camera import project
 from gaitnet.geometry.rotation import so3_exp, so3_log
 from gaitnet.io.types import (
@@ -13,13 +17,16 @@ from gaitnet.io.types import (
     SessionCalibration,
     tag_corners_in_board,
 )
+from gaitnet.vio import apriltags
 from gaitnet.vio.apriltags import (
     AprilTagParams,
     camera_pose_jacobian,
     detect_board_pose,
+    detect_tags,
     imu_pose_from_camera,
     pose_covariance,
 )
+from gaitnet.vio.config import VioConfig
 
 CAM = CameraIntrinsics(width=640, height=480, fx=386.0, fy=386.0, cx=319.5, cy=239.5)
 K = CAM.K
@@ -81,42 +88,88 @@ def _frame(gray):
     )
 
 
-def test_synthetic_board_pose_and_corner_convention():
+DETECTORS = ["apriltag3", "aruco"]
+
+
+@pytest.mark.parametrize("detector", DETECTORS)
+def test_synthetic_board_pose_and_corner_convention(detector):
     board = _board()
     T_true = _camera()
-    obs = detect_board_pose(_frame(_render(board, T_true)), _calib([board]))
+    params = AprilTagParams(detector=detector)
+    obs = detect_board_pose(_frame(_render(board, T_true)), _calib([board]), params)
     assert obs is not None and obs.board == "start"
     assert obs.n_tags >= 30
-    assert np.linalg.norm(obs.T_WfromC[:3, 3] - T_true[:3, 3]) < 0.003
+    assert np.linalg.norm(obs.T_WfromC[:3, 3] - T_true[:3, 3]) < 0.005
     assert np.degrees(np.linalg.norm(so3_log(T_true[:3, :3].T @ obs.T_WfromC[:3, :3]))) < 0.3
-    assert obs.rms_px < 0.5
-    # detected corners are the projections of tag_corners_in_board (aruco order)
+    assert obs.rms_px < 0.6
+    # known answer: the detected corners are the true projections of tag_corners_in_board
+    # (aruco order, pixel centres at integers): a corner out of order is a tag side (~14 px)
+    # away, a pixel-centre slip is a 0.5 px mean offset
     p_C = (obs.corners_W.reshape(-1, 3) - T_true[:3, 3]) @ T_true[:3, :3]
     uv, _ = project(K, p_C)
-    assert np.abs(uv - obs.corners_px.reshape(-1, 2)).max() < 1.0
+    d = obs.corners_px.reshape(-1, 2) - uv
+    assert np.abs(d).max() < 1.0
+    assert np.abs(d.mean(axis=0)).max() < 0.2
     np.testing.assert_allclose(obs.cov6, obs.cov6.T)
     assert np.all(np.linalg.eigvalsh(obs.cov6) > 0)
 
 
-def test_picks_the_board_in_view_and_ignores_others():
+def test_the_detector_key_selects_the_corner_detector():
+    board = _board()
+    img = _render(board, _camera())
+    ids, corners = {}, {}
+    for detector in DETECTORS:
+        i, c = detect_tags(img, AprilTagParams(detector=detector))
+        order = np.argsort(i)
+        ids[detector], corners[detector] = i[order], c[order]
+    np.testing.assert_array_equal(ids["apriltag3"], ids["aruco"])
+    # the same tags, corners within a pixel, from two different detectors
+    diff = np.abs(corners["apriltag3"] - corners["aruco"])
+    assert diff.max() < 1.0 and np.median(diff) > 1e-3
+
+
+def test_a_wrong_detector_is_a_one_line_config_error():
+    with pytest.raises(ConfigError, match="tags.detector") as info:
+        load_config(VioConfig, None, ["tags.detector=opencv"])
+    assert "\n" not in str(info.value)
+    with pytest.raises(ValueError, match="detector"):
+        AprilTagParams(detector="opencv")
+
+
+def test_apriltag3_without_its_package_is_a_one_line_error(monkeypatch):
+    monkeypatch.setitem(sys.modules, "pupil_apriltags", None)  # import fails
+    monkeypatch.setattr(apriltags, "_DETECTORS", {})
+    img = _render(_board(), _camera())
+    with pytest.raises(ConfigError, match="pupil_apriltags==") as info:
+        detect_tags(img, AprilTagParams(detector="apriltag3"))
+    assert "\n" not in str(info.value) and "tags.detector=aruco" in str(info.value)
+    assert len(detect_tags(img, AprilTagParams(detector="aruco"))[0]) >= 30
+
+
+@pytest.mark.parametrize("detector", DETECTORS)
+def test_picks_the_board_in_view_and_ignores_others(detector):
     start, end = _board("start", 0, x=0.3), _board("end", 35, x=5.0)
     T_true = _camera()
     img = _render(start, T_true)
-    obs = detect_board_pose(_frame(img), _calib([end, start]))
+    params = AprilTagParams(detector=detector)
+    obs = detect_board_pose(_frame(img), _calib([end, start]), params)
     assert obs is not None and obs.board == "start"
     assert set(obs.tag_ids.tolist()) <= set(range(35))
     # ids on no board of the session: nothing
-    assert detect_board_pose(_frame(img), _calib([end])) is None
-    assert detect_board_pose(_frame(img), _calib([])) is None
+    assert detect_board_pose(_frame(img), _calib([end]), params) is None
+    assert detect_board_pose(_frame(img), _calib([]), params) is None
     # with a pose guess the search is limited to the boards' projections: a guess with no board
     # in view finds nothing, a guess 3 cm off finds the board
     T_far = _camera(x=3.0)
-    assert detect_board_pose(_frame(img), _calib([start]), T_WfromC_guess=T_far) is None
+    assert detect_board_pose(_frame(img), _calib([start]), params, T_WfromC_guess=T_far) is None
     T_near = T_true.copy()
     T_near[:3, 3] += [0.03, -0.02, 0.01]
-    obs2 = detect_board_pose(_frame(img), _calib([start]), T_WfromC_guess=T_near)
-    assert obs2 is not None
-    np.testing.assert_allclose(obs2.T_WfromC, obs.T_WfromC, atol=1e-6)
+    obs2 = detect_board_pose(_frame(img), _calib([start]), params, T_WfromC_guess=T_near)
+    assert obs2 is not None and obs2.n_tags == obs.n_tags
+    if detector == "aruco":  # the same corners in the box as in the whole image
+        np.testing.assert_allclose(obs2.T_WfromC, obs.T_WfromC, atol=1e-6)
+    else:  # AprilTag 3's corners move by up to ~0.1 px with the box's top row
+        np.testing.assert_allclose(obs2.T_WfromC, obs.T_WfromC, atol=2e-3)
 
 
 def _pixels(T_WfromC, P_W):
@@ -199,4 +252,35 @@ def test_bad_parameters():
     board = _board()
     img = _render(board, _camera())
     with pytest.raises(ValueError, match="corner_refinement"):
-        detect_board_pose(_frame(img), _calib([board]), AprilTagParams(corner_refinement="x"))
+        detect_board_pose(
+            _frame(img), _calib([board]), AprilTagParams(detector="aruco", corner_refinement="x")
+        )
+
+
+def test_apriltag3_detector_is_freed_before_its_tag_families():
+    # pupil-apriltags' own __del__ frees the families first, and the C detector's destructor
+    # then reads freed memory (a segmentation fault at exit); close() frees in the C order
+    calls = []
+
+    class Fn:
+        def __init__(self, name):
+            self.name = name
+
+        def __call__(self, arg):
+            calls.append((self.name, arg))
+
+    class Libc:
+        def __getattr__(self, name):
+            return Fn(name)
+
+    class Binding:
+        tag_detector_ptr = "det"
+        tag_families = {"tag36h11": "fam"}
+        libc = Libc()
+
+    det = Binding()
+    apriltags._AprilTag3(det).close()
+    assert calls == [("apriltag_detector_destroy", "det"), ("tag36h11_destroy", "fam")]
+    assert det.tag_detector_ptr is None  # the binding's __del__ frees nothing
+    apriltags._AprilTag3(det).close()
+    assert len(calls) == 2

@@ -1,10 +1,13 @@
 """AprilTag board detection and camera pose with its covariance (thesis (3.27)–(3.34)).
 
-:func:`detect_board_pose` finds tag36h11 markers with OpenCV's ``cv.aruco`` in one colour
-frame, matches their ids to the session's boards (:attr:`SessionCalibration.apriltag_boards`,
-corner convention :func:`gaitnet.io.types.tag_corners_in_board`), and estimates the camera pose
-``T_WfromC`` from all corners of all tags of the best-seen board: ``cv.solvePnP`` (IPPE, the
-planar solver) followed by a Levenberg–Marquardt refinement of the reprojection error.
+:func:`detect_board_pose` finds tag36h11 markers in one colour frame with one of two corner
+detectors (``AprilTagParams.detector``): the AprilTag 3 library (package ``pupil-apriltags``,
+the default) or OpenCV's ``cv.aruco``. Both return the corners in the same convention (aruco
+order, pixel centres at integers; :func:`detect_tags`); the rest is shared: the ids are matched
+to the session's boards (:attr:`SessionCalibration.apriltag_boards`, corner convention
+:func:`gaitnet.io.types.tag_corners_in_board`) and the camera pose ``T_WfromC`` is estimated
+from all corners of all tags of the best-seen board: ``cv.solvePnP`` (IPPE, the planar
+solver) followed by a Levenberg–Marquardt refinement of the reprojection error.
 
 Covariance (3.30), corrected as in D.-C. Dang's thesis notes: with corner pixels
 ``r_img,j = f_img(p_j,C) + η``, ``η ~ N(0, ε1 I2)`` (3.27), the pose error covariance is
@@ -21,12 +24,15 @@ the *camera* pose, in the filter's convention (docs: module ``state``):
 
 from __future__ import annotations
 
+import atexit
 import logging
 from dataclasses import dataclass, field
+from typing import Any, Literal
 
 import cv2 as cv
 import numpy as np
 
+from gaitnet.errors import ConfigError
 from gaitnet.geometry.camera import project, projection_jacobian
 from gaitnet.geometry.rotation import skew
 from gaitnet.io.types import AprilTagBoard, Frame, SessionCalibration, tag_corners_in_board
@@ -50,6 +56,22 @@ _REFINE = {
     "apriltag": cv.aruco.CORNER_REFINE_APRILTAG,
 }
 _FAMILIES = {"tag36h11": cv.aruco.DICT_APRILTAG_36h11}
+_DETECTOR_NAMES = ("apriltag3", "aruco")
+
+#: The AprilTag 3 library's package (PyPI project pupil-apriltags), as pinned in pyproject.toml.
+APRILTAG3_PACKAGE = "pupil_apriltags==1.0.4.post11"
+#: AprilTag 3 detector settings: full resolution (``quad_decimate`` 2 decodes ~10 of a sheet's
+#: 35 tags at 640×480), no blur (``quad_sigma`` 0.8 decodes ~6), edge refinement, the library's
+#: default sharpening, one thread (the filter's budget is per core).
+APRILTAG3_SETTINGS: dict[str, Any] = {
+    "nthreads": 1,
+    "quad_decimate": 1.0,
+    "quad_sigma": 0.0,
+    "refine_edges": 1,
+    "decode_sharpening": 0.25,
+}
+#: Largest number of corrected bits of an AprilTag 3 decode that is kept.
+APRILTAG3_MAX_HAMMING = 2
 
 
 @dataclass(frozen=True)
@@ -61,26 +83,34 @@ class AprilTagParams:
     ``benchmarks/bench_detectors.py`` prints the comparison.
     """
 
+    detector: Literal["apriltag3", "aruco"] = "apriltag3"
+    """Corner detector: ``apriltag3`` (AprilTag 3, package pupil-apriltags, at full resolution;
+    ``APRILTAG3_SETTINGS`` in ``gaitnet/vio/apriltags.py``) or ``aruco`` (OpenCV's cv.aruco with
+    the keys marked (aruco); set ``corner_sigma_px`` to 0.25 with it). On det_s200–s202 standing
+    frames AprilTag 3 decodes 35.0 of a sheet's 35 tags per frame (aruco: 33.7), median camera
+    position error 2.6 mm (3.3 mm), and takes 4 ms CPU per frame searching where the filter
+    predicts the board (11 ms), 34 ms on a whole frame without a prediction (32 ms)."""
     upsample: int = 3
-    """Detect on the image enlarged by this integer factor (bicubic). At 640×480 the tags are
-    ~14 px wide: OpenCV's defaults at ×1 decode ~13 of a sheet's 35, ×2 ~31, ×3 ~34; with
-    contour refinement the median position error falls from 12 mm (×1) and 4.8 mm (×2) to
+    """(aruco) Detect on the image enlarged by this integer factor (bicubic). At 640×480 the
+    tags are ~14 px wide: OpenCV's defaults at ×1 decode ~13 of a sheet's 35, ×2 ~31, ×3 ~34;
+    with contour refinement the median position error falls from 12 mm (×1) and 4.8 mm (×2) to
     3.3 mm (×3; ×4 is no better and slower). Tuned on det_s200–s202 standing frames."""
     adaptive_thresh_win_min: int = 3
-    """``adaptiveThreshWinSizeMin`` (OpenCV default 3)."""
+    """(aruco) ``adaptiveThreshWinSizeMin`` (OpenCV default 3)."""
     adaptive_thresh_win_max: int = 23
-    """``adaptiveThreshWinSizeMax`` (OpenCV default 23)."""
+    """(aruco) ``adaptiveThreshWinSizeMax`` (OpenCV default 23)."""
     adaptive_thresh_win_step: int = 10
-    """``adaptiveThreshWinSizeStep`` (OpenCV default 10)."""
+    """(aruco) ``adaptiveThreshWinSizeStep`` (OpenCV default 10)."""
     min_marker_perimeter_rate: float = 0.03
-    """``minMarkerPerimeterRate``: smallest marker perimeter / largest image side (OpenCV
-    default 0.03; in the ×2 image a 14 px tag has 112 / 1280 = 0.09)."""
+    """(aruco) ``minMarkerPerimeterRate``: smallest marker perimeter / largest image side
+    (OpenCV default 0.03; in the ×2 image a 14 px tag has 112 / 1280 = 0.09)."""
     corner_refinement: str = "contour"
-    """``none``, ``subpix``, ``contour`` or ``apriltag`` (benchmark: ``contour`` gives the
-    smallest pose error, ``subpix`` ~1.4× larger; ``apriltag`` loses most tags at this size)."""
+    """(aruco) ``none``, ``subpix``, ``contour`` or ``apriltag`` (benchmark: ``contour`` gives
+    the smallest pose error, ``subpix`` ~1.4× larger; ``apriltag`` loses most tags at this
+    size)."""
     error_correction_rate: float = 0.8
-    """``errorCorrectionRate`` (OpenCV default 0.6): accepting more bit errors decodes ~2 more
-    tags per sheet; a wrong id is caught by the board-id and reprojection checks."""
+    """(aruco) ``errorCorrectionRate`` (OpenCV default 0.6): accepting more bit errors decodes
+    ~2 more tags per sheet; a wrong id is caught by the board-id and reprojection checks."""
     roi_margin_px: float = 40.0
     """With a pose guess, detect only in the boards' projected bounding box grown by this
     margin [px] (covers a guess off by ~4 cm at 1 m)."""
@@ -93,12 +123,20 @@ class AprilTagParams:
     max_reprojection_rms_px: float = 1.5
     """Reject a pose whose corner reprojection RMS is above this [px] (a wrong id or a blurred
     frame; standing frames in simulation give ~0.1–0.3 px)."""
-    corner_sigma_px: float = 0.25
-    """Smallest corner noise standard deviation [px] used for ``ε1`` (3.27). ``ε1`` is the larger
-    of this squared and the fit's unbiased residual variance. On det_s200–s202 standing frames
-    0.5 px gave a mean normalised pose error (NEES, 6 dof) of 1.0, i.e. a covariance 6× too
-    large; 0.25 px gives ~4: still a little conservative, for the errors that are not white
-    (blur, rendering, the sheet's print)."""
+    corner_sigma_px: float = 0.45
+    """Smallest corner noise standard deviation [px] used for ``ε1`` (3.27). ``ε1`` is the
+    larger of this squared and the fit's unbiased residual variance. On det_s200–s202 standing
+    frames the mean normalised pose error (NEES, 6 dof; 6 when the covariance is honest) with
+    ``apriltag3`` is 15 at 0.25 px, 7.7 at 0.35 px, 4.7 at 0.45 px, 3.8 at 0.5 px: 0.45 px is
+    a little conservative, for the errors that are not white (blur, rendering, the sheet's
+    print).
+    ``aruco``'s corners want 0.25 px (NEES ~4; 0.5 px gives 1.0)."""
+
+    def __post_init__(self) -> None:
+        if self.detector not in _DETECTOR_NAMES:
+            raise ValueError(
+                f"detector must be one of {', '.join(_DETECTOR_NAMES)}, got {self.detector!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -123,9 +161,7 @@ class TagObservation:
     corners_W: np.ndarray = field(repr=False)
 
 
-def _detector(family: str, params: AprilTagParams) -> cv.aruco.ArucoDetector:
-    if family not in _FAMILIES:
-        raise ValueError(f"unsupported tag family {family!r} (supported: {sorted(_FAMILIES)})")
+def _aruco_detector(family: str, params: AprilTagParams) -> cv.aruco.ArucoDetector:
     if params.corner_refinement not in _REFINE:
         raise ValueError(
             f"corner_refinement must be one of {sorted(_REFINE)}, got {params.corner_refinement!r}"
@@ -140,7 +176,97 @@ def _detector(family: str, params: AprilTagParams) -> cv.aruco.ArucoDetector:
     return cv.aruco.ArucoDetector(cv.aruco.getPredefinedDictionary(_FAMILIES[family]), p)
 
 
-_DETECTORS: dict[tuple[str, AprilTagParams], cv.aruco.ArucoDetector] = {}
+class _AprilTag3:
+    """A ``pupil_apriltags.Detector`` freed in the order the C library needs.
+
+    pupil-apriltags 1.0.4 frees the tag families before the detector, whose destructor still
+    reads them: at garbage collection (e.g. at exit) the process can die of a segmentation
+    fault. :meth:`close` frees the detector first, then its families, and leaves nothing for
+    the binding's own ``__del__`` to free; it runs when this object goes and at exit.
+    """
+
+    def __init__(self, det: Any) -> None:
+        self.det = det
+
+    def detect(self, img: np.ndarray) -> list[Any]:
+        return self.det.detect(img)
+
+    def close(self) -> None:
+        det = self.det
+        ptr = getattr(det, "tag_detector_ptr", None)
+        if ptr is None:
+            return
+        det.tag_detector_ptr = None  # the binding's __del__ then frees nothing
+        det.libc.apriltag_detector_destroy.restype = None
+        det.libc.apriltag_detector_destroy(ptr)
+        for family, tf in det.tag_families.items():
+            destroy = getattr(det.libc, f"{family}_destroy")
+            destroy.restype = None
+            destroy(tf)
+        det.tag_families = {}
+
+    def __del__(self) -> None:
+        self.close()
+
+
+def _apriltag3_detector(family: str, params: AprilTagParams) -> _AprilTag3:
+    try:
+        import pupil_apriltags  # noqa: PLC0415  (imported when selected)
+    except ImportError as exc:
+        raise ConfigError(
+            f"tags.detector is 'apriltag3' but its package is not installed: "
+            f"pip install {APRILTAG3_PACKAGE}, or set tags.detector=aruco"
+        ) from exc
+    return _AprilTag3(pupil_apriltags.Detector(families=family, **APRILTAG3_SETTINGS))
+
+
+@atexit.register
+def _close_detectors() -> None:
+    for det in _DETECTORS.values():
+        if isinstance(det, _AprilTag3):
+            det.close()
+
+
+_DETECTORS: dict[tuple[Any, ...], Any] = {}
+
+
+def _cached_detector(family: str, params: AprilTagParams) -> Any:
+    if family not in _FAMILIES:
+        raise ValueError(f"unsupported tag family {family!r} (supported: {sorted(_FAMILIES)})")
+    if params.detector == "apriltag3":  # settings: the module's constants
+        key: tuple[Any, ...] = ("apriltag3", family, *sorted(APRILTAG3_SETTINGS.items()))
+        make = _apriltag3_detector
+    else:
+        key = ("aruco", family, params)
+        make = _aruco_detector
+    det = _DETECTORS.get(key)
+    if det is None:
+        det = _DETECTORS[key] = make(family, params)
+    return det
+
+
+def _detect_aruco(
+    det: cv.aruco.ArucoDetector, img: np.ndarray, upsample: int
+) -> tuple[np.ndarray, np.ndarray]:
+    s = int(upsample)
+    if s > 1:
+        img = cv.resize(img, None, fx=s, fy=s, interpolation=cv.INTER_CUBIC)
+    corners, ids, _ = det.detectMarkers(img)
+    if ids is None or len(ids) == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros((0, 4, 2))
+    c = np.asarray(corners, dtype=np.float64).reshape(-1, 4, 2)
+    return np.asarray(ids, dtype=np.int64).reshape(-1), (c + 0.5) / s - 0.5
+
+
+def _detect_apriltag3(det: _AprilTag3, img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    found = [r for r in det.detect(np.ascontiguousarray(img)) if r.hamming <= APRILTAG3_MAX_HAMMING]
+    if not found:
+        return np.zeros(0, dtype=np.int64), np.zeros((0, 4, 2))
+    # AprilTag 3 lists a tag's corners top-right, top-left, bottom-left, bottom-right as read
+    # (counter-clockwise on the image), pixel centres at +0.5: aruco order is [1, 0, 3, 2],
+    # minus 0.5 px (tests/test_vio_apriltags.py checks both against tag_corners_in_board).
+    c = np.stack([np.asarray(r.corners, dtype=np.float64)[[1, 0, 3, 2]] for r in found])
+    return np.array([r.tag_id for r in found], dtype=np.int64), c - 0.5
 
 
 def detect_tags(
@@ -151,15 +277,17 @@ def detect_tags(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Decode tags in a grey image: ``(ids (n,), corners (n, 4, 2))`` in full-image pixels.
 
-    Corners are in aruco order (top-left, top-right, bottom-right, bottom-left as read), pixel
-    centres at integers. ``roi = (x0, y0, x1, y1)`` restricts the search to that box.
-    The image is enlarged ``params.upsample`` times first; a point ``u'`` of the enlarged
-    image is ``(u' + 0.5) / s − 0.5`` in the original (pixel-centre model).
+    Whichever ``params.detector``, the corners are in aruco order (top-left, top-right,
+    bottom-right, bottom-left as read), pixel centres at integers: those of
+    :func:`gaitnet.io.types.tag_corners_in_board`. ``roi = (x0, y0, x1, y1)`` restricts the
+    search to that box (``aruco`` finds the same corners there as in the whole image,
+    ``apriltag3``'s move by up to ~0.1 px with the box's top row). ``aruco`` enlarges the image
+    ``params.upsample`` times first; a point ``u'`` of the enlarged image is
+    ``(u' + 0.5) / s − 0.5`` in the original (pixel-centre model). Raises
+    :class:`~gaitnet.errors.ConfigError` when ``apriltag3`` is selected and its package is
+    missing.
     """
-    key = (family, params)
-    det = _DETECTORS.get(key)
-    if det is None:
-        det = _DETECTORS[key] = _detector(family, params)
+    det = _cached_detector(family, params)
     x0 = y0 = 0
     img = gray
     if roi is not None:
@@ -167,15 +295,11 @@ def detect_tags(
         img = gray[y0:y1, x0:x1]
     if img.size == 0:
         return np.zeros(0, dtype=np.int64), np.zeros((0, 4, 2))
-    s = int(params.upsample)
-    if s > 1:
-        img = cv.resize(img, None, fx=s, fy=s, interpolation=cv.INTER_CUBIC)
-    corners, ids, _ = det.detectMarkers(img)
-    if ids is None or len(ids) == 0:
-        return np.zeros(0, dtype=np.int64), np.zeros((0, 4, 2))
-    c = np.asarray(corners, dtype=np.float64).reshape(-1, 4, 2)
-    c = (c + 0.5) / s - 0.5 + np.array([x0, y0], dtype=np.float64)
-    return np.asarray(ids, dtype=np.int64).reshape(-1), c
+    if params.detector == "apriltag3":
+        ids, c = _detect_apriltag3(det, img)
+    else:
+        ids, c = _detect_aruco(det, img, params.upsample)
+    return ids, c + np.array([x0, y0], dtype=np.float64)
 
 
 def camera_pose_jacobian(K: np.ndarray, T_WfromC: np.ndarray, P_W: np.ndarray) -> np.ndarray:
