@@ -436,6 +436,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             except SystemExit as exc:  # --help / --version
                 return exc.code if isinstance(exc.code, int) else 0
             name = f"{PROG} {args.command}"
+            if unknown and hasattr(args, "overrides"):
+                # KEY=VALUE after an option (``SESSION --out DIR a=1``) is not a positional
+                # to argparse once the positionals are filled: it is still an override
+                late = [u for u in unknown if "=" in u and not u.startswith("-")]
+                args.overrides = [*(args.overrides or []), *late]
+                unknown = [u for u in unknown if u not in late]
             if unknown:
                 raise UsageError(
                     name, f"unrecognized arguments: {' '.join(unknown)} (see '{name} --help')"

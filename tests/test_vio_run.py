@@ -232,7 +232,9 @@ def test_config_switches_act(tiny_sim_session: Path) -> None:
 
 def test_cli_vio_writes_every_output(tiny_sim_session: Path, tmp_path: Path, capsys) -> None:
     out = tmp_path / "vio"
-    assert main(["vio", str(tiny_sim_session), "--out", str(out)]) == 0
+    # overrides may follow --out (argparse alone would refuse them there)
+    assert main(["vio", str(tiny_sim_session), "--out", str(out), "smoother.enabled=false"]) == 0
+    assert "smoother:\n  enabled: false" in (out / "vio_config.yaml").read_text()
     for name in (
         "camera_frames.tum",
         "filter_frames.tum",
