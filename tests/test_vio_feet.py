@@ -282,3 +282,29 @@ def test_clutter_far_to_the_side_is_ignored():
     for t, c, h, cam in frames:
         assert trk.update(t, c, heading_W=h, p_CinW=cam) == [None]
     assert trk.finish() == []
+
+
+def test_sides_from_the_final_landmark_positions_undo_the_pose_drift():
+    # the pose that moves the observations to the world drifts sideways with the gait (a
+    # lateral error of ±15 cm, period 1 s): stances split where it moves a foot's point by
+    # more than assoc_radius_m, and consecutive lateral offsets, which decide the sides,
+    # are wrong. Labelled at their true positions (the final landmark estimates, where the
+    # drift has been corrected), every stance gets its side.
+    frames, truth = _walk(width=0.06)
+    trk = StanceTracker()
+    for t, cands, heading, cam in frames:
+        drift = np.array([0.0, 0.15 * np.sin(2 * np.pi * t)])
+        trk.update(t, [p + drift for p in cands], heading_W=heading, p_CinW=cam + drift)
+    stances = trk.finish()
+    true = [truth[int(np.argmin([abs(s.t_first - t0) for _, _, t0, _ in truth]))] for s in stances]
+    assert len(stances) > len(truth)  # split stances
+    online = sum(s.side == tr[0] for s, tr in zip(stances, true, strict=True))
+    assert online < len(stances) / 2
+    sides = trk.sides_at({s.id: tr[1] for s, tr in zip(stances, true, strict=True)})
+    assert sides == {s.id: tr[0] for s, tr in zip(stances, true, strict=True)}
+    # stances left out take no part
+    some = {s.id: tr[1] for s, tr in zip(stances[::2], true[::2], strict=True)}
+    assert trk.sides_at(some) == {
+        s.id: tr[0] for s, tr in zip(stances[::2], true[::2], strict=True)
+    }
+    assert trk.sides_at({}) == {}
