@@ -288,7 +288,9 @@ def run_vio(source: SessionSource, cfg: VioConfig, progress: Progress | None = N
         raise SessionError("no frame could be processed after the initialising one")
     for lm_id in list(state.landmarks):
         _freeze(state, lm_id, landmarks[lm_id])
-    sides = {s.id: s.side for s in tracker.finish()}
+    tracker.finish()
+    # sides from where the stances are in the end, not from the drifting poses of the time
+    sides = tracker.sides_at(_reported_xy(landmarks, cfg))
     feet_filter = _stance_feet(landmarks, sides, cfg, t_ref_ns)
     strides_filter = _strides(feet_filter, cfg)
 
@@ -304,6 +306,7 @@ def run_vio(source: SessionSource, cfg: VioConfig, progress: Progress | None = N
             lm.xy = smoothed.landmarks[lm_id].copy()
             cov = smoothed.landmark_cov.get(lm_id)
             lm.std_xy = np.sqrt(np.clip(np.diag(cov), 0.0, None)) if cov is not None else lm.std_xy
+        sides = tracker.sides_at(_reported_xy(landmarks, cfg))
         feet = _stance_feet(landmarks, sides, cfg, t_ref_ns)
         strides = _strides(feet, cfg)
 
@@ -328,6 +331,11 @@ def run_vio(source: SessionSource, cfg: VioConfig, progress: Progress | None = N
         skipped=skipped,
         timings_s=dict(clock),
     )
+
+
+def _reported_xy(landmarks: dict[int, _Landmark], cfg: VioConfig) -> dict[int, np.ndarray]:
+    """Floor positions of the landmarks that are reported (``min_foot_observations``)."""
+    return {i: lm.xy for i, lm in landmarks.items() if lm.n_obs >= cfg.filter.min_foot_observations}
 
 
 def _stance_feet(
