@@ -14,7 +14,14 @@ mean normalised error squared (NEES, 6 dof: 6 expected) with the fraction inside
 χ²(6) bound (12.59).
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_vo.py /tmp/sessions/vo_*_s2* \
-        [--every 2] [--scale 1.0] [--dense]
+        [--every 2] [--scale 1.0] [--dense] [--set motion_std=0] [--dump pairs.npz]
+
+``--dump`` writes the IMU-guess pairs' session, frame, error vector, covariance, true motion,
+residual and inlier count for further analysis (e.g. the share of the error along the motion:
+motion blur makes the measured translation a few per cent short on long exposures). The
+per-pair NEES judges the covariance of single pairs; the floor ``motion_std`` is meant for
+errors that persist over consecutive pairs, so with it the per-pair NEES is well below 6
+(the filter's own consistency: ``benchmarks/bench_nees.py``).
 
 Sessions are made with ``gaitnet simulate --seed N --out DIR scene.floor_family=F``.
 """
@@ -102,6 +109,12 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE", help="OdometryParams")
     ap.add_argument("--no-identity", action="store_true", help="only the IMU-like guess")
+    ap.add_argument(
+        "--dump",
+        type=Path,
+        default=None,
+        help="write the IMU-guess pairs' errors, covariances and statistics to this .npz",
+    )
     args = ap.parse_args(argv)
     cv.setNumThreads(1)
     rng = np.random.default_rng(args.seed)
@@ -118,6 +131,7 @@ def main(argv: list[str] | None = None) -> None:
     if args.no_identity:
         del methods["identity"]
     rows: dict[tuple[str, str], list] = defaultdict(list)
+    dump: dict[str, list] = defaultdict(list)
     reasons: dict[tuple[str, str], dict[str, int]] = defaultdict(lambda: defaultdict(int))
     for session in args.sessions:
         fam = floor_family(session)
@@ -153,6 +167,15 @@ def main(argv: list[str] | None = None) -> None:
                 et, er, e = errors(res.R, res.t, T_true)
                 nees = float(e @ np.linalg.solve(res.cov6, e)) if res.ok else np.nan
                 rows[(fam, name)].append((res.ok, et, er, ms, nees, motion_mm, res.weak_dirs))
+                if args.dump is not None and name == "imu-guess" and res.ok:
+                    dump["session"].append(session.name)
+                    dump["pair"].append(i)
+                    dump["error"].append(e)
+                    dump["cov6"].append(res.cov6)
+                    dump["T_true"].append(T_true)
+                    dump["residual_px"].append(res.residual)
+                    dump["n_inliers"].append(res.n_inliers)
+                    dump["weak_dirs"].append(res.weak_dirs)
                 reasons[(fam, name)][res.reason.split(" (")[0].split(":")[0] or "ok"] += 1
             if dense is not None:
                 t0 = time.thread_time()
@@ -189,6 +212,8 @@ def main(argv: list[str] | None = None) -> None:
                 f"{fam:<12}{name:<12}{len(a):>6}{0:>6.0f}  (no ok pair)  "
                 f"{np.median(a[:, 3]):.1f} ms"
             )
+    if args.dump is not None:
+        np.savez(args.dump, **{k: np.array(v) for k, v in dump.items()})
     print("\nfailure reasons:")
     for (fam, name), r in sorted(reasons.items()):
         print(f"  {fam:<12}{name:<12}", dict(r))

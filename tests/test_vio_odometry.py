@@ -16,6 +16,7 @@ from gaitnet.vio.odometry import (
     OdometryParams,
     VoResult,
     covariance_from_information,
+    motion_floor,
 )
 from gaitnet.vio.odometry_pose import pose_information, reprojection_residuals
 
@@ -148,7 +149,8 @@ def test_textureless_floor_fails(contrast):
     """Only sensor noise (1 grey level) on the floor: seeded tracks would stay at the guess,
     so the result must not come back as a measurement."""
     prev, cur, T_true = pair(contrast=contrast, seed=1)
-    params = OdometryParams(scale=1.0, image_noise_grey=1.0)  # 320×240 is already small
+    # 320×240 is already small; no motion floor: it is the same for both textures
+    params = OdometryParams(scale=1.0, image_noise_grey=1.0, motion_std=0.0)
     res = FrameOdometry(params).estimate(prev, cur, K, perturb(T_true, 5, 0.5, 6))
     assert not res.ok
     assert "textured" in res.reason
@@ -160,7 +162,8 @@ def test_faint_texture_is_uncertain_but_consistent():
     error stays inside its covariance (3 sigma of the translation), and that covariance is
     much larger than on a well-textured floor."""
     prev, cur, T_true = pair(contrast=0.03, seed=1)
-    params = OdometryParams(scale=1.0, image_noise_grey=1.0)  # 320×240 is already small
+    # 320×240 is already small; no motion floor: it is the same for both textures
+    params = OdometryParams(scale=1.0, image_noise_grey=1.0, motion_std=0.0)
     T_guess = perturb(T_true, 5, 0.5, 6)
     res = FrameOdometry(params).estimate(prev, cur, K, T_guess)
     assert res.ok, res.reason
@@ -264,3 +267,30 @@ def test_common_shift_information_matches_dense_inverse():
     dense = J.T @ np.linalg.solve(Sigma, J)
     info = pose_information(K, R, t, p, np.linalg.inv(cov_i), common_px=c)
     assert np.allclose(info, dense, rtol=1e-8, atol=1e-8 * np.abs(dense).max())
+
+
+def test_motion_floor_known_answer():
+    """``motion_floor``: std·|t| per translation axis, std·|t|/depth per rotation axis."""
+    cov = motion_floor(np.array([0.03, 0.0, -0.04]), 1.25, 0.2)  # |t| = 5 cm
+    assert np.allclose(np.diag(cov), [0.008**2] * 3 + [0.01**2] * 3)
+    assert np.count_nonzero(cov - np.diag(np.diag(cov))) == 0
+    assert np.all(motion_floor(np.zeros(3), 1.0, 0.2) == 0.0)
+
+
+def test_motion_std_adds_the_motion_floor(textured_pair):
+    """``vo.motion_std`` adds the floor of the pair's own motion to the covariance and changes
+    nothing else; a still camera gets no floor."""
+    prev, cur, T_true = textured_pair
+    guess = perturb(T_true, 5.0, 0.5, 3)
+    base = FrameOdometry(OdometryParams(motion_std=0.0)).estimate(prev, cur, K, guess)
+    floored = FrameOdometry(OdometryParams(motion_std=0.2)).estimate(prev, cur, K, guess)
+    assert base.ok and floored.ok
+    assert np.array_equal(base.R, floored.R) and np.array_equal(base.t, floored.t)
+    added = floored.cov6 - base.cov6
+    assert np.allclose(np.diag(added)[3:], (0.2 * np.linalg.norm(base.t)) ** 2)
+    assert np.allclose(added, np.diag(np.diag(added)), atol=1e-15)
+    assert np.all(np.diag(added)[:3] > 0)
+    still = FrameOdometry(OdometryParams(motion_std=0.2)).estimate(prev, prev, K, np.eye(4))
+    still0 = FrameOdometry(OdometryParams(motion_std=0.0)).estimate(prev, prev, K, np.eye(4))
+    assert still.ok and np.linalg.norm(still.t) < 1e-3
+    assert np.allclose(still.cov6, still0.cov6, rtol=1e-3, atol=(0.2e-3) ** 2)

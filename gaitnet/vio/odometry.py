@@ -15,7 +15,9 @@ instead:
 4. covariance ``σ² (JᵀJ)⁻¹`` over ``(dφ, dt)`` from the inlier reprojections, ``σ`` the inlier
    residual RMS (floored): the thesis's residual-scaled noise. Directions the corners barely
    constrain (eigenvalues of the information below a floor) get a large variance, so the
-   filter lets the IMU carry them;
+   filter lets the IMU carry them. Then a floor proportional to the motion
+   (:func:`motion_floor`) for the errors that neither the corners of a pair nor consecutive
+   pairs average out (motion blur above all);
 5. checks: enough depth, corners, tracks and inliers, and a result near the guess — else
    ``ok = False`` with the reason, and the filter skips the update.
 """
@@ -68,10 +70,14 @@ class OdometryParams:
     ``inlier_chi2``: RANSAC threshold, iterations, and the final inlier gate on the
     Mahalanobis residual (χ²(2) 99 %: 9.21). ``min_inliers``:
     fewer → ``ok = False``. ``sigma_min_px``: floor of the residual-scaled pixel noise;
-    ``cov_scale``: multiplies the covariance (tracking errors are correlated, so the
-    least-squares covariance is optimistic). ``weak_std_rad``: a direction of the
-    information whose standard deviation exceeds this (translation measured in radians at the
-    median corner depth) is weakly constrained and gets ``weak_variance`` (rad² / m² at 1 m);
+    ``common_px``: standard deviation of an image shift shared by all corners [px, full
+    resolution]; ``cov_scale``: multiplies the covariance (tracking errors are correlated, so
+    the least-squares covariance is optimistic). ``motion_std``: the errors that grow with the
+    motion (:func:`motion_floor`: motion blur, rolling shutter, frame time, depth scale), as a
+    standard deviation per unit of motion, added after ``cov_scale``. ``weak_std_rad``: a
+    direction of the information whose standard deviation exceeds this (translation measured
+    in radians at the median corner depth) is weakly constrained and gets ``weak_variance``
+    (rad² / m² at 1 m);
     all six weak → ``ok = False``. ``max_guess_rotation_rad``, ``max_guess_translation_m``:
     a result farther than this from the guess is implausible → ``ok = False`` (inf = no check).
     """
@@ -95,6 +101,7 @@ class OdometryParams:
     min_inliers: int = 20
     sigma_min_px: float = 0.3
     common_px: float = 1.0
+    motion_std: float = 0.3
     cov_scale: float = 4.0
     weak_std_rad: float = 0.05
     weak_variance: float = 1.0
@@ -197,6 +204,23 @@ def covariance_from_information(
     cov_s = (V * var) @ V.T
     cov = D @ cov_s @ D
     return 0.5 * (cov + cov.T), int(weak.sum())
+
+
+def motion_floor(t: FloatArray, depth_m: float, std: float) -> FloatArray:
+    """Covariance floor (6×6 over ``(dφ, dt)``) of the errors that grow with the motion, added
+    to the VO noise ``R_vo`` of (3.21).
+
+    Standard deviation ``std · |t|`` per translation axis and ``std · |t| / depth_m`` per
+    rotation axis (the rotation that moves the image as much as that translation at the
+    corners' median depth). Motion blur (the tracked displacement between two blurred images
+    is off by a fraction of the blur, alike for all corners of a pair and for consecutive
+    pairs), rolling shutter, a frame-time error and a depth-scale error act so: per pair they
+    are small, but they do not average out over the corners of a pair nor over consecutive
+    pairs, and a filter fed them as white noise of their per-pair size drifts beyond its
+    covariance.
+    """
+    s2 = (std * float(np.linalg.norm(t))) ** 2
+    return np.diag([s2 / depth_m**2] * 3 + [s2] * 3)
 
 
 class FrameOdometry:
@@ -350,7 +374,7 @@ class FrameOdometry:
         info = pose_information(Kw, R, t, p_in, fit.weights, p.common_px * p.scale)
         depth = float(np.median(p_in[:, 2]))
         cov6, n_weak = covariance_from_information(info, depth, p.weak_std_rad, p.weak_variance)
-        cov6 *= p.cov_scale
+        cov6 = p.cov_scale * cov6 + motion_floor(t, depth, p.motion_std)
         times["total"] = 1e3 * (time.perf_counter() - t0)
         residual = math.sqrt(float((fit.residuals**2).sum()) / max(n_inliers, 1)) / p.scale
         if n_weak == 6:
