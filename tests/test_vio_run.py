@@ -252,3 +252,38 @@ def test_cli_vio_writes_every_output(tiny_sim_session: Path, tmp_path: Path, cap
     assert main(["vio", str(tiny_sim_session), "--out", str(tmp_path / "x"), "filter.foo=1"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("gaitnet vio: error:") and "filter.foo" in err[-1]
+
+
+def test_tag_gate_refuses_a_pose_metres_off(
+    tiny_sim_session: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """After sheets seen where the filter expects them, a wrong decode reporting the camera
+    2 m away with a confident covariance is refused by the default loose gate
+    (``filter.tag_gate_probability``); without a gate it is accepted and followed."""
+    import gaitnet.vio.apriltags as apriltags
+    from gaitnet.vio.apriltags import TagObservation
+
+    source = open_session(tiny_sim_session)
+    assert source.calibration.apriltag_boards and len(source) > 12
+    board = source.calibration.apriltag_boards[0].name
+
+    def decoded(frame, calib, params, T_WfromC_guess=None):
+        if T_WfromC_guess is None:  # initialisation: no board, gravity and floor instead
+            return None
+        T = np.array(T_WfromC_guess, dtype=np.float64)
+        if frame.index >= 8:
+            T[0, 3] += 2.0
+        cov6 = np.diag([1e-4] * 3 + [1e-4] * 3)
+        empty = np.zeros(0)
+        return TagObservation(board, T, cov6, 4, 0.2, 0.25, empty, empty, empty)
+
+    monkeypatch.setattr(apriltags, "detect_board_pose", decoded)
+    gated = run_vio(source, VioConfig())
+    # refused while the filter is sure of where it is (IMU-only at 6 Hz, its covariance grows
+    # until, seconds later, 2 m becomes plausible)
+    assert gated.used["tag"] >= 7 and gated.skipped["tag"]["outside the chi2 gate"] >= 5
+    ungated = run_vio(source, load_config(VioConfig, None, ["filter.tag_gate_probability=0"]))
+    assert ungated.used["tag"] == len(ungated.t_s) - 1 and "tag" not in ungated.skipped
+    k = int(np.searchsorted(gated.session_index, 10))
+    shift = ungated.T_WfromC_filter[k, 0, 3] - gated.T_WfromC_filter[k, 0, 3]
+    assert shift > 1.0

@@ -58,9 +58,10 @@ class FilterParams:
 
     ``*_gate_probability``: a measurement whose innovation's Mahalanobis distance exceeds the
     χ² quantile of this probability (for its dimension) is rejected and counted (0 disables
-    the gate). Tags are not gated by default: the detector already refuses wrong ids and poor
-    fits (``tags.max_reprojection_rms_px``), and a gate would refuse the end sheet's
-    correction of the drift accumulated during the walk. ``foot_std_m``: standard deviation
+    the gate). The tag gate is loose (χ²(3) quantile 0.99999, ≈ 25.9): it refuses a pose metres off
+    from a wrong decode of 2–3 tags (seen on simulated tuning sessions, where it made the filter
+    diverge) but not the end sheet's correction of the walk's drift, which the filter's
+    covariance covers now that it is consistent (docs/vio.md, *Filter consistency*). ``foot_std_m``: standard deviation
     of a measured stance-foot point per axis [m]. ``min_foot_observations``: landmarks seen
     fewer times are not reported. ``end_sheet_std_m``: placement uncertainty of a tag sheet
     other than the one that initialised the state (the thesis's ε2: the end sheet's distance
@@ -74,7 +75,7 @@ class FilterParams:
     use_tags: bool = True
     use_feet: bool = True
     vo_gate_probability: float = 0.999
-    tag_gate_probability: float = 0.0
+    tag_gate_probability: float = 0.99999
     foot_gate_probability: float = 0.999
     foot_std_m: float = 0.01
     min_foot_observations: int = 3
