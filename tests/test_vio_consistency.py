@@ -81,20 +81,12 @@ def test_band_is_the_chi2_interval() -> None:
     assert chi2.ppf([0.025, 0.975], 3) == pytest.approx(CHI2_3_BAND, abs=1e-4)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the foot point lies 3.4-4.1 mm medial of the sole centre (feet.py's lateral middle "
-    "of the visible foot pixels: the inner side of each shoe is seen, the outer hidden), so "
-    "with the filter's 2-3 mm the largest error is ~6 mm",
-)
 def test_noise_free_stance_feet_within_5_mm(noise_free: Path) -> None:
     """Issue 9: on a noise-free session the stance-foot positions are within 5 mm of the true
     flat sole centres (``groundtruth/events.csv``). The shoe length is the subject's (the
-    thesis takes the foot size as known; ``feet.shoe_length_m``).
-
-    Not met yet (xfail, strict: it turns into a failure once met, to drop the mark): with the
-    true camera poses the detector's foot points lie 3.4–4.1 mm medial of the sole centres
-    (sd 1 mm per frame; along the foot 0 ± 1.5 mm), and the filter adds 2–3 mm."""
+    thesis takes the foot size as known; ``feet.shoe_length_m``). The lateral foot point comes
+    from the shoe's top (``feet.top_height_fraction``): from all visible points it lay
+    3.4–4.1 mm medial of the sole centres, and the largest error here was 6.2 mm."""
     shoe = yaml.safe_load((noise_free / "groundtruth" / "subject.yaml").read_text())
     cfg = VioConfig()
     cfg = dataclasses.replace(

@@ -308,3 +308,24 @@ def test_sides_from_the_final_landmark_positions_undo_the_pose_drift():
         s.id: tr[0] for s, tr in zip(stances[::2], true[::2], strict=True)
     }
     assert trk.sides_at({}) == {}
+
+
+def test_lateral_foot_point_from_the_shoe_top_is_not_pulled_towards_the_camera():
+    """A shoe whose upper is narrower than its sole, 25 cm to the side of the camera: the
+    camera sees the near sole edge and the upper hides the far one, so the middle of all its
+    points lies towards the camera; the middle of its top (``top_height_fraction``) is on the
+    shoe's centre line (known answer: y = 0.25)."""
+    T = _pose()
+    x, y = 0.8, 0.25
+    sole = (x - 0.13, x + 0.13, y - 0.045, y + 0.045, 0.0, 0.03)  # 1 cm wider each side
+    upper = (x - 0.11, x + 0.11, y - 0.035, y + 0.035, 0.0, 0.08)  # hides the far 1 cm
+    depth = _render(T, [sole, upper])
+    lateral = {}
+    for fraction in (0.0, 0.75):
+        params = FootParams(shoe_length_m=0.26, toe_margin_m=0.0, top_height_fraction=fraction)
+        (c,) = detect_foot_candidates(depth, K, _plane(T), params)
+        lateral[fraction] = _to_world(T, c.p_FinC)[1]
+    assert abs(lateral[0.75] - y) < 0.002
+    assert y - lateral[0.0] > 0.003  # pulled towards the camera (y = 0) by the near sole edge
+    with pytest.raises(ValueError, match="top_height_fraction"):
+        detect_foot_candidates(depth, K, _plane(T), FootParams(top_height_fraction=1.0))

@@ -56,19 +56,20 @@ class ImuNoiseParams:
 class FilterParams:
     """Which updates run and their noise.
 
-    ``*_gate_probability``: a measurement whose innovation's Mahalanobis distance exceeds the
-    χ² quantile of this probability (for its dimension) is rejected and counted (0 disables
-    the gate). The tag gate is loose (χ²(3) quantile 0.99999, ≈ 25.9): it refuses a pose metres off
+    ``*_gate_probability``: a measurement whose innovation's Mahalanobis distance exceeds the χ²
+    quantile of this probability (for its dimension) is rejected and counted (0 disables the
+    gate). The tag gate is loose (χ²(3) quantile 0.99999, ≈ 25.9): it refuses a pose metres off
     from a wrong decode of 2–3 tags (seen on simulated tuning sessions, where it made the filter
     diverge) but not the end sheet's correction of the walk's drift, which the filter's
-    covariance covers now that it is consistent (docs/vio.md, *Filter consistency*). ``foot_std_m``: standard deviation
-    of a measured stance-foot point per axis [m]. ``min_foot_observations``: landmarks seen
-    fewer times are not reported. ``end_sheet_std_m``: placement uncertainty of a tag sheet
-    other than the one that initialised the state (the thesis's ε2: the end sheet's distance
-    is tape-measured; a few millimetres). ``gravity_mps2``: gravity magnitude; 0 takes the
-    accelerometer's mean magnitude while standing at the start (it then also absorbs the
-    accelerometer's vertical scale error). ``marginalise_after_s``: a landmark not observed
-    for this long [s] leaves the state (its foot has left).
+    covariance covers now that it is consistent (docs/vio.md, *Filter consistency*).
+    ``foot_std_m``: standard deviation of a measured stance-foot point per axis [m].
+    ``min_foot_observations``: landmarks seen fewer times are not reported. ``end_sheet_std_m``:
+    placement uncertainty of a tag sheet other than the one that initialised the state (the
+    thesis's ε2: the end sheet's distance is tape-measured; a few millimetres).
+    ``gravity_mps2``: gravity magnitude; 0 takes the accelerometer's mean magnitude while
+    standing at the start (it then also absorbs the accelerometer's vertical scale error).
+    ``marginalise_after_s``: a landmark not observed for this long [s] leaves the state (its
+    foot has left).
     """
 
     use_vo: bool = True
@@ -102,8 +103,8 @@ class SmootherParams:
     ``strides.csv`` are then the smoothed estimates; off: the filter's). ``max_iterations``:
     Gauss–Newton iterations from the filter's estimates (1 is the thesis's single linear
     solve; the second moves the estimate by the linearisation error of the first, mm to cm on
-    a walk; a third moved it by less than 0.01 mm on simulated tuning sessions). ``step_tol``: stop earlier when the
-    largest step component (rad, m, m/s) is below it.
+    a walk; a third moved it by less than 0.01 mm on simulated tuning sessions).
+    ``step_tol``: stop earlier when the largest step component (rad, m, m/s) is below it.
     """
 
     enabled: bool = True
