@@ -41,7 +41,7 @@ import numpy as np  # noqa: E402
 from gaitnet.geometry.rotation import so3_exp, so3_log  # noqa: E402
 from gaitnet.io.session_folder import SessionFolder  # noqa: E402
 from gaitnet.io.trajectory import read_tum  # noqa: E402
-from gaitnet.vio import apriltags  # noqa: E402
+from gaitnet.vio import tag_detectors  # noqa: E402
 from gaitnet.vio.apriltags import AprilTagParams, detect_board_pose  # noqa: E402
 from gaitnet.vio.feet import FootParams, detect_foot_candidates  # noqa: E402
 from gaitnet.vio.floor import FloorParams, fit_floor_depth  # noqa: E402
@@ -119,7 +119,7 @@ _CV_DEFAULT = replace(
     _ARUCO, upsample=1, corner_refinement="none", error_correction_rate=0.6, max_tag_error_px=1e9
 )
 
-#: name → (params, AprilTag 3 settings overriding apriltags.APRILTAG3_SETTINGS, max hamming,
+#: name → (params, AprilTag 3 settings overriding tag_detectors.APRILTAG3_SETTINGS, max hamming,
 #: search with a pose guess). Without --all only the rows marked * run.
 # fmt: off
 TAG_SETTINGS: dict[str, tuple[AprilTagParams, dict, int | None, bool]] = {
@@ -156,16 +156,16 @@ TAG_SETTINGS: dict[str, tuple[AprilTagParams, dict, int | None, bool]] = {
 def _apriltag3_settings(settings: dict, max_hamming: int | None):
     """Temporarily change the module's AprilTag 3 settings (the detector cache is keyed on
     them)."""
-    old, old_h = dict(apriltags.APRILTAG3_SETTINGS), apriltags.APRILTAG3_MAX_HAMMING
-    apriltags.APRILTAG3_SETTINGS.update(settings)
+    old, old_h = dict(tag_detectors.APRILTAG3_SETTINGS), tag_detectors.APRILTAG3_MAX_HAMMING
+    tag_detectors.APRILTAG3_SETTINGS.update(settings)
     if max_hamming is not None:
-        apriltags.APRILTAG3_MAX_HAMMING = max_hamming
+        tag_detectors.APRILTAG3_MAX_HAMMING = max_hamming
     try:
         yield
     finally:
-        apriltags.APRILTAG3_SETTINGS.clear()
-        apriltags.APRILTAG3_SETTINGS.update(old)
-        apriltags.APRILTAG3_MAX_HAMMING = old_h
+        tag_detectors.APRILTAG3_SETTINGS.clear()
+        tag_detectors.APRILTAG3_SETTINGS.update(old)
+        tag_detectors.APRILTAG3_MAX_HAMMING = old_h
 
 
 def bench_tags(truths: list[Truth], all_settings: bool) -> None:

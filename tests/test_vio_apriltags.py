@@ -17,16 +17,16 @@ from gaitnet.io.types import (
     SessionCalibration,
     tag_corners_in_board,
 )
-from gaitnet.vio import apriltags
+from gaitnet.vio import tag_detectors
 from gaitnet.vio.apriltags import (
     AprilTagParams,
     camera_pose_jacobian,
     detect_board_pose,
-    detect_tags,
     imu_pose_from_camera,
     pose_covariance,
 )
 from gaitnet.vio.config import VioConfig
+from gaitnet.vio.tag_detectors import detect_tags
 
 CAM = CameraIntrinsics(width=640, height=480, fx=386.0, fy=386.0, cx=319.5, cy=239.5)
 K = CAM.K
@@ -138,7 +138,7 @@ def test_a_wrong_detector_is_a_one_line_config_error():
 
 def test_apriltag3_without_its_package_is_a_one_line_error(monkeypatch):
     monkeypatch.setitem(sys.modules, "pupil_apriltags", None)  # import fails
-    monkeypatch.setattr(apriltags, "_DETECTORS", {})
+    monkeypatch.setattr(tag_detectors, "_DETECTORS", {})
     img = _render(_board(), _camera())
     with pytest.raises(ConfigError, match="pupil_apriltags==") as info:
         detect_tags(img, AprilTagParams(detector="apriltag3"))
@@ -279,8 +279,8 @@ def test_apriltag3_detector_is_freed_before_its_tag_families():
         libc = Libc()
 
     det = Binding()
-    apriltags._AprilTag3(det).close()
+    tag_detectors._AprilTag3(det).close()
     assert calls == [("apriltag_detector_destroy", "det"), ("tag36h11_destroy", "fam")]
     assert det.tag_detector_ptr is None  # the binding's __del__ frees nothing
-    apriltags._AprilTag3(det).close()
+    tag_detectors._AprilTag3(det).close()
     assert len(calls) == 2
