@@ -38,13 +38,13 @@ from pathlib import Path  # noqa: E402
 import cv2 as cv  # noqa: E402
 import numpy as np  # noqa: E402
 
+from gaitnet.geometry.floor_plane import FloorParams, fit_floor_depth  # noqa: E402
 from gaitnet.geometry.rotation import so3_exp, so3_log  # noqa: E402
 from gaitnet.io.session_folder import SessionFolder  # noqa: E402
 from gaitnet.io.trajectory import read_tum  # noqa: E402
 from gaitnet.vio import tag_detectors  # noqa: E402
 from gaitnet.vio.apriltags import AprilTagParams, detect_board_pose  # noqa: E402
 from gaitnet.vio.feet import FootParams, detect_foot_candidates  # noqa: E402
-from gaitnet.vio.floor import FloorParams, fit_floor_depth  # noqa: E402
 
 cv.setNumThreads(1)
 

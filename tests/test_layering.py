@@ -19,6 +19,7 @@ LAYERS = {
     "evaluation": 3,
     "motion": 4,
     "vio": 4,
+    "segmentation": 4,
     "sim": 5,
     "training": 5,
     "cli": 6,

@@ -5,9 +5,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from gaitnet.geometry.floor_plane import FloorPlane
 from gaitnet.geometry.rotation import so3_exp
 from gaitnet.vio.feet import FootParams, detect_foot_candidates
-from gaitnet.vio.floor import FloorPlane
 from gaitnet.vio.stance_tracker import StanceParams, StanceTracker
 
 K = np.array([[386.0, 0.0, 319.5], [0.0, 386.0, 239.5], [0.0, 0.0, 1.0]])

@@ -4,7 +4,8 @@ Sections: ``imu`` (noise densities), ``init`` (:class:`~gaitnet.vio.initialise.I
 ``filter`` (which updates run, their noise and gates), ``vo``
 (:class:`~gaitnet.vio.odometry.OdometryParams`), ``tags``
 (:class:`~gaitnet.vio.apriltags.AprilTagParams`), ``floor``
-(:class:`~gaitnet.vio.floor.FloorParams`), ``feet`` (:class:`~gaitnet.vio.feet.FootParams`),
+(:class:`~gaitnet.geometry.floor_plane.FloorParams`), ``feet``
+(:class:`~gaitnet.vio.feet.FootParams`),
 ``stance`` (:class:`~gaitnet.vio.stance_tracker.StanceParams`), ``smoother`` and ``gait``.
 """
 
@@ -14,10 +15,10 @@ import math
 from dataclasses import dataclass, field
 
 from gaitnet.checks import check_int_range, check_positive, check_range
+from gaitnet.geometry.floor_plane import FloorParams
 from gaitnet.io.types import ImuNoise, SessionCalibration
 from gaitnet.vio.apriltags import AprilTagParams
 from gaitnet.vio.feet import FootParams
-from gaitnet.vio.floor import FloorParams
 from gaitnet.vio.initialise import InitParams
 from gaitnet.vio.odometry import OdometryParams
 from gaitnet.vio.stance_tracker import StanceParams

@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import cv2 as cv
 import numpy as np
 
-from gaitnet.vio.floor import FloorPlane, height_map
+from gaitnet.geometry.floor_plane import FloorPlane, height_map
 
 log = logging.getLogger(__name__)
 
@@ -272,7 +272,7 @@ def detect_foot_candidates(
     """Stance-foot candidates (3.24)–(3.26) of one depth image, largest first (≤ 2).
 
     ``depth_m`` (H, W) metres aligned to the colour camera ``K``, 0 where invalid;
-    ``plane`` the frame's floor (:func:`gaitnet.vio.floor.fit_floor`).
+    ``plane`` the frame's floor (:func:`gaitnet.geometry.floor_plane.fit_floor`).
     """
     params = params or FootParams()
     if not 0.0 <= params.top_height_fraction < 1.0:

@@ -18,9 +18,9 @@ import numpy as np
 
 from gaitnet.errors import SessionError
 from gaitnet.geometry import quat_from_rotmat
+from gaitnet.geometry.floor_plane import FloorParams, fit_floor_depth
 from gaitnet.io.types import Frame, ImuSamples, SessionCalibration
 from gaitnet.vio.apriltags import AprilTagParams, detect_board_pose, imu_pose_from_camera
-from gaitnet.vio.floor import FloorParams, fit_floor_depth
 from gaitnet.vio.state import FilterState, ImuState
 
 log = logging.getLogger(__name__)

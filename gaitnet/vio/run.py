@@ -7,7 +7,8 @@ Per frame (thesis Algorithm 1, with the tag update in the loop as thesis-notes s
    relative pose (:mod:`gaitnet.vio.odometry`, :mod:`gaitnet.vio.vo_model`);
 3. AprilTag update when a board is in view (:mod:`gaitnet.vio.apriltags`,
    :mod:`gaitnet.vio.tag_model`);
-4. floor plane and stance-foot candidates (:mod:`gaitnet.vio.floor`, :mod:`gaitnet.vio.feet`),
+4. floor plane and stance-foot candidates (:mod:`gaitnet.geometry.floor_plane`,
+   :mod:`gaitnet.vio.feet`),
    grouped into stances and sides (:mod:`gaitnet.vio.stance_tracker`); a new stance augments
    the state with a landmark, a continuing one updates it (:mod:`gaitnet.vio.foot_model`), a
    finished one is marginalised;
@@ -41,12 +42,12 @@ import numpy as np
 
 from gaitnet.errors import SessionError
 from gaitnet.geometry import make_T
+from gaitnet.geometry.floor_plane import fit_floor_depth
 from gaitnet.io.types import Frame, SessionSource
 from gaitnet.vio import covariance
 from gaitnet.vio.config import VioConfig
 from gaitnet.vio.errors import FilterDivergedError
 from gaitnet.vio.feet import detect_foot_candidates
-from gaitnet.vio.floor import fit_floor_depth
 from gaitnet.vio.gait import Stance, strides_from_stances
 from gaitnet.vio.imu_propagation import propagate_to
 from gaitnet.vio.initialise import initialise, up_in_camera

@@ -1,11 +1,17 @@
-"""Floor plane fit with a gravity prior, height map (gaitnet.vio.floor, thesis (3.22)–(3.23))."""
+"""Floor plane fit with a gravity prior, height map (geometry.floor_plane, thesis (3.22)–(3.23))."""
 
 import numpy as np
 import pytest
 
 from gaitnet.geometry.camera import depth_to_points, project
+from gaitnet.geometry.floor_plane import (
+    FloorParams,
+    FloorPlane,
+    fit_floor,
+    fit_floor_depth,
+    height_map,
+)
 from gaitnet.geometry.rotation import so3_exp
-from gaitnet.vio.floor import FloorParams, FloorPlane, fit_floor, fit_floor_depth, height_map
 
 K = np.array([[386.0, 0.0, 319.5], [0.0, 386.0, 239.5], [0.0, 0.0, 1.0]])
 
