@@ -1,0 +1,176 @@
+"""The ``gaitnet`` subcommands: each parses nothing, calls one library function and prints a short
+report (the parser is in :mod:`gaitnet.cli`)."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+from tqdm import tqdm
+
+from gaitnet.cli.arguments import PROG, UsageError
+
+
+def _cmd_check(args: argparse.Namespace) -> int:
+    from gaitnet.io import open_session
+
+    session = open_session(args.session)
+    frames = session.frames()
+    if args.decode:
+        n_invalid = 0.0
+        for frame in tqdm(frames, total=len(session), desc="decoding frames", unit="frame"):
+            n_invalid += float(np.mean(frame.depth_m == 0))
+    calib = session.calibration
+    times = session.frame_times_ns.astype(np.float64) * 1e-9
+    imu = session.imu
+    duration = times[-1] - times[0] if len(times) > 1 else 0.0
+    rate = (len(times) - 1) / duration if duration > 0 else float("nan")
+    imu_span = (imu.t_ns[-1] - imu.t_ns[0]) * 1e-9 if len(imu) > 1 else 0.0
+    imu_rate = (len(imu) - 1) / imu_span if imu_span > 0 else float("nan")
+    print(f"session   {args.session}")
+    print(f"device    {calib.device}")
+    print(
+        f"frames    {len(session)} over {duration:.2f} s ({rate:.1f} Hz), "
+        f"{calib.color.width}×{calib.color.height}"
+    )
+    print(f"imu       {len(imu)} samples ({imu_rate:.1f} Hz)")
+    print(f"boards    {len(calib.apriltag_boards)} AprilTag board(s)")
+    if args.decode:
+        print(f"depth     {100 * n_invalid / max(len(session), 1):.1f} % invalid pixels on average")
+        print("ok: every frame decoded")
+    else:
+        print("ok: headers checked (add --decode to decode every frame)")
+    return 0
+
+
+def _cmd_convert(args: argparse.Namespace) -> int:
+    from gaitnet.io import copy_session, open_session
+
+    session = open_session(args.input)
+    out = copy_session(
+        session,
+        args.output,
+        overwrite=args.overwrite,
+        progress=lambda it, total: tqdm(it, total=total, desc="converting", unit="frame"),
+    )
+    print(f"wrote {len(session)} frames and {len(session.imu)} IMU samples to {out}")
+    return 0
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from gaitnet.config import dump_config, load_config
+    from gaitnet.sim.config import SimConfig
+    from gaitnet.sim.session import simulate_session
+
+    cfg = load_config(SimConfig, args.config, args.overrides)
+    result = simulate_session(
+        cfg,
+        args.seed,
+        args.out,
+        overwrite=args.overwrite,
+        progress=lambda it, total: tqdm(it, total=total, desc="rendering", unit="frame"),
+        config_text=dump_config(cfg),
+    )
+    checks = result.marker_checks
+    print(
+        f"wrote {result.n_frames} frames ({result.duration_s:.1f} s) and {result.n_imu} IMU "
+        f"samples to {result.path}"
+    )
+    print(f"subject {result.subject.height_m:.2f} m, floor '{result.floor_family}'")
+    print(
+        f"foot markers visible in {100 * checks['visible_marker_fraction']:.1f} % of "
+        f"frame-sides; on a foot label in {100 * checks['visible_marker_on_foot_label']:.2f} % "
+        "of those"
+    )
+    print(f"preview: {result.path / 'preview.png'}")
+    return 0
+
+
+def _cmd_simulate_dataset(args: argparse.Namespace) -> int:
+    from gaitnet.config import load_config
+    from gaitnet.sim.config import SimConfig
+    from gaitnet.sim.dataset import simulate_dataset
+
+    if (args.pitch_min is None) != (args.pitch_max is None):
+        raise UsageError(
+            f"{PROG} simulate-dataset", "give --pitch-min and --pitch-max together (or neither)"
+        )
+    pitch_range = None if args.pitch_min is None else (args.pitch_min, args.pitch_max)
+    cfg = load_config(SimConfig, args.config, args.overrides)
+    result = simulate_dataset(
+        cfg,
+        args.n,
+        args.seed,
+        args.out,
+        pitch_range_deg=pitch_range,
+        labelme=args.labelme,
+        overwrite=args.overwrite,
+        progress=lambda it, total: tqdm(it, total=total, desc="rendering", unit="frame"),
+    )
+    shares = ", ".join(f"{k} {100 * v:.1f} %" for k, v in result.label_fractions.items())
+    print(f"wrote {result.n_frames} labelled frames to {result.path} (pixels: {shares})")
+    return 0
+
+
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from gaitnet.evaluation.evaluate import evaluate_result, write_report
+
+    report = evaluate_result(args.result_dir, args.session)
+    for key, value in sorted(report.metrics.items()):
+        if isinstance(value, dict):
+            parts = ", ".join(
+                f"{k} {v:.4f}" if isinstance(v, float) else f"{k} {v}" for k, v in value.items()
+            )
+            print(f"{key:16s} {parts}")
+        else:
+            print(f"{key:16s} {value:.4f}")
+    if args.json:
+        write_report(report, args.json)
+        print(f"wrote {args.json}")
+    return 0
+
+
+def _cmd_vio(args: argparse.Namespace) -> int:
+    from gaitnet.config import dump_config, load_config
+    from gaitnet.io import open_session
+    from gaitnet.io.atomic import check_output_folder
+    from gaitnet.vio.config import VioConfig
+    from gaitnet.vio.report import summary, write_result
+    from gaitnet.vio.run import run_vio
+
+    cfg = load_config(VioConfig, args.config, args.overrides)
+    check_output_folder(args.out, args.overwrite)
+    session = open_session(args.session)
+    result = run_vio(
+        session,
+        cfg,
+        progress=lambda it, total: tqdm(it, total=total, desc="filter", unit="frame"),
+    )
+    out = write_result(result, args.out, dump_config(cfg), overwrite=args.overwrite)
+    info = summary(result)
+    gait = info["gait"]
+    print(f"initialisation: {result.initialisation_note}")
+    if result.smoother.get("ran"):
+        print(f"smoother: {result.smoother['iterations']} Gauss–Newton iterations (sec. 3.5)")
+    elif result.smoother:
+        print(f"smoother failed ({result.smoother['reason']}): the filter's estimates follow")
+    else:
+        print("smoother off: the filter's estimates follow")
+    print(
+        f"{info['frames']} frames, {info['duration_s']:.1f} s, "
+        f"camera path {info['distance_m']:.2f} m; "
+        f"{len(result.stance_feet)} stance feet, {len(result.strides)} strides"
+    )
+    for side in ("left", "right"):
+        length = gait[side]["stride_length_m"]
+        if length:
+            print(
+                f"{side:5s} stride length {length['mean']:.3f} ± {length['std']:.3f} m over "
+                f"{gait[side]['n_strides']} steady strides"
+            )
+        else:
+            print(f"{side:5s} no steady stride")
+    if info["walking_speed_mps"] is not None:
+        print(f"walking speed {info['walking_speed_mps']:.2f} m/s")
+    print(f"wrote {out} (summary.json, strides.csv, trajectory.png)")
+    return 0
