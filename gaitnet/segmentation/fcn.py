@@ -1,0 +1,438 @@
+"""FCN-8s on torchvision's VGG16 and the RGB / HHA / RGB+HHA late-fusion segmenter (thesis
+sec. 4.1).
+
+FCN-8s as published (Long, Shelhamer, Darrell, "Fully Convolutional Networks for Semantic
+Segmentation", CVPR 2015; reference nets at github.com/shelhamer/fcn.berkeleyvision.org):
+torchvision's VGG16 feature layers (``torchvision.models.vgg.make_layers(cfgs["D"])``, the
+layers of ``torchvision.models.vgg16``) with ``conv1_1`` padded by 100 and ceil-mode pooling;
+``fc6`` as a 7×7 convolution and ``fc7`` as a 1×1 convolution (4096 channels, ReLU, dropout
+0.5); class score layers on ``fc7`` (``score_fr``), ``pool4`` and ``pool3``; transposed
+convolutions ``upscore2`` (×2), ``upscore_pool4`` (×2) and ``upscore8`` (×8) initialised to
+bilinear interpolation (the last one stays fixed, the other two learn, as in the reference
+nets); the published crops 5 (pool4), 9 (pool3) and 31 (output), which make the output exactly
+the input's size for any input size. Score layers start at zero, as in the reference nets.
+
+``width`` scales every channel count (``max(1, round(c * width))``): 1.0 is the published net
+(for GPUs), 1/8 or 1/16 make CPU-sized variants.
+
+:class:`SegmenterNet` wraps one stream (``arch`` "rgb" or "hha") or two (``"fusion"``: the
+RGB and HHA streams' class score maps are summed, the thesis's late fusion, trained jointly).
+It takes channels in [0, 1] (RGB/255, HHA/255, or both concatenated), normalises them itself
+(ImageNet mean/std for RGB, :data:`HHA_MEAN` / :data:`HHA_STD` for HHA), resizes the input by
+``input_scale`` before the streams (bilinear, no antialiasing, so the ONNX graph matches) and
+returns logits at the input size.
+
+:func:`build_segmenter` can start both streams from torchvision's ImageNet VGG16 weights given
+as a LOCAL state-dict file (e.g. ``vgg16-397923af.pth``, loaded with ``weights_only=True``;
+nothing is downloaded): conv layers copied, ``fc6``/``fc7`` from the classifier's first two
+linear layers reshaped, as the FCN authors did (the HHA stream too).
+"""
+
+from __future__ import annotations
+
+import math
+import pickle
+import re
+import warnings
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import torch
+import torchvision
+from torch import nn
+from torch.nn import functional as nnf
+from torchvision.models import vgg as tv_vgg
+
+from gaitnet.errors import ConfigError, InputError, one_line
+
+__all__ = [
+    "ARCHS",
+    "HHA_MEAN",
+    "HHA_STD",
+    "RGB_MEAN",
+    "RGB_STD",
+    "FCN8s",
+    "SegmenterNet",
+    "bilinear_kernel",
+    "build_segmenter",
+    "fcn8s_parameter_count",
+    "input_channels",
+    "load_vgg16_weights",
+    "model_input",
+    "read_vgg16_weights",
+    "scaled_channels",
+    "segmenter_from_checkpoint",
+]
+
+ARCHS = ("rgb", "hha", "fusion")
+
+#: ImageNet statistics torchvision's VGG16 weights were trained with (channels in [0, 1]).
+RGB_MEAN = (0.485, 0.456, 0.406)
+RGB_STD = (0.229, 0.224, 0.225)
+#: Fixed normalisation of HHA/255: maps [0, 1] to [-2, 2], the spread of normalised RGB.
+HHA_MEAN = (0.5, 0.5, 0.5)
+HHA_STD = (0.25, 0.25, 0.25)
+
+#: torchvision's VGG16 layer list ("D": channels, "M" = 2×2 max pooling).
+VGG16_CFG: tuple[int | str, ...] = tuple(tv_vgg.cfgs["D"])
+FC_CHANNELS = 4096
+#: The published crops (offsets into the larger map) of FCN-8s.
+CROP_POOL4, CROP_POOL3, CROP_OUT = 5, 9, 31
+
+
+def input_channels(arch: str) -> int:
+    """Input channels of ``arch``: 3 (rgb), 3 (hha), 6 (fusion: RGB then HHA)."""
+    _check_arch(arch)
+    return 6 if arch == "fusion" else 3
+
+
+def _check_arch(arch: Any) -> str:
+    if arch not in ARCHS:
+        raise ConfigError(f"segmenter arch must be one of {list(ARCHS)}, got {arch!r}")
+    return arch
+
+
+def scaled_channels(channels: int, width: float) -> int:
+    """``max(1, round(channels * width))``: a channel count of the width-scaled net."""
+    return max(1, int(round(channels * width)))
+
+
+def bilinear_kernel(size: int) -> torch.Tensor:
+    """The (size, size) bilinear interpolation kernel of an upsampling by ``(size + 1) // 2``
+    (the FCN reference ``surgery.upsample_filt``)."""
+    factor = (size + 1) // 2
+    center = factor - 1 if size % 2 == 1 else factor - 0.5
+    r = torch.arange(size, dtype=torch.float64)
+    f = 1 - torch.abs(r - center) / factor
+    return torch.outer(f, f).to(torch.float32)
+
+
+def _bilinear_init(layer: nn.ConvTranspose2d) -> None:
+    """Each class channel upsampled on its own by bilinear interpolation."""
+    c_in, c_out, kh, kw = layer.weight.shape
+    assert c_in == c_out and kh == kw
+    with torch.no_grad():
+        layer.weight.zero_()
+        kernel = bilinear_kernel(kh)
+        for c in range(c_in):
+            layer.weight[c, c] = kernel
+
+
+def fcn8s_parameter_count(num_classes: int, width: float = 1.0, in_channels: int = 3) -> int:
+    """Parameters of one FCN-8s stream, counted from the layer list (weights + biases)."""
+    total, c_prev = 0, in_channels
+    for v in VGG16_CFG:
+        if v == "M":
+            continue
+        c = scaled_channels(int(v), width)
+        total += c_prev * c * 9 + c
+        c_prev = c
+    fc = scaled_channels(FC_CHANNELS, width)
+    c3, c4 = scaled_channels(256, width), scaled_channels(512, width)
+    n = num_classes
+    total += c_prev * fc * 49 + fc  # fc6
+    total += fc * fc + fc  # fc7
+    total += (fc + 1) * n + (c4 + 1) * n + (c3 + 1) * n  # score_fr, score_pool4, score_pool3
+    total += n * n * (4 * 4 + 4 * 4 + 16 * 16)  # upscore2, upscore_pool4, upscore8 (no bias)
+    return total
+
+
+class FCN8s(nn.Module):
+    """One FCN-8s stream (3 input channels, already normalised) → class scores at input size.
+
+    ``features`` is torchvision's VGG16 feature stack (``conv1_1`` … ``pool5``, channel counts
+    scaled by ``width``); spatial scales below are relative to the padded input.
+    """
+
+    def __init__(
+        self, num_classes: int = 3, width: float = 1.0, in_channels: int = 3, dropout: float = 0.5
+    ) -> None:
+        super().__init__()
+        cfg = [v if v == "M" else scaled_channels(int(v), width) for v in VGG16_CFG]
+        self.features = tv_vgg.make_layers(cfg)
+        first = self.features[0]
+        assert isinstance(first, nn.Conv2d)
+        if in_channels != 3:
+            self.features[0] = first = nn.Conv2d(in_channels, first.out_channels, 3)
+        first.padding = (100, 100)  # conv1_1: padding 100 (the published net)
+        pools = [i for i, m in enumerate(self.features) if isinstance(m, nn.MaxPool2d)]
+        for i in pools:
+            self.features[i].ceil_mode = True
+        self._pool3, self._pool4 = pools[2], pools[3]
+        c3, c4, c5 = (scaled_channels(c, width) for c in (256, 512, 512))
+        fc = scaled_channels(FC_CHANNELS, width)
+        self.fc6 = nn.Conv2d(c5, fc, 7)  # 1/32
+        self.relu6 = nn.ReLU(inplace=True)
+        self.drop6 = nn.Dropout(dropout)
+        self.fc7 = nn.Conv2d(fc, fc, 1)
+        self.relu7 = nn.ReLU(inplace=True)
+        self.drop7 = nn.Dropout(dropout)
+        self.score_fr = nn.Conv2d(fc, num_classes, 1)
+        self.score_pool4 = nn.Conv2d(c4, num_classes, 1)
+        self.score_pool3 = nn.Conv2d(c3, num_classes, 1)
+        self.upscore2 = nn.ConvTranspose2d(num_classes, num_classes, 4, stride=2, bias=False)
+        self.upscore_pool4 = nn.ConvTranspose2d(num_classes, num_classes, 4, stride=2, bias=False)
+        self.upscore8 = nn.ConvTranspose2d(num_classes, num_classes, 16, stride=8, bias=False)
+        self.num_classes = num_classes
+        self.width = width
+        self.reset_parameters()
+
+    def reset_parameters(self) -> None:
+        """VGG convs and fc6/fc7 as torchvision initialises VGG convs (He, fan-out); score
+        layers zero; transposed convs bilinear, ``upscore8`` fixed."""
+        for m in [*self.features, self.fc6, self.fc7]:
+            if isinstance(m, nn.Conv2d):
+                nn.init.kaiming_normal_(m.weight, mode="fan_out", nonlinearity="relu")
+                nn.init.zeros_(m.bias)
+        for m in (self.score_fr, self.score_pool4, self.score_pool3):
+            nn.init.zeros_(m.weight)
+            nn.init.zeros_(m.bias)
+        for m in (self.upscore2, self.upscore_pool4, self.upscore8):
+            _bilinear_init(m)
+        self.upscore8.weight.requires_grad_(False)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, 3, H, W) normalised → (B, num_classes, H, W) class scores."""
+        h = x
+        pool3 = pool4 = x
+        for i, layer in enumerate(self.features):
+            h = layer(h)
+            if i == self._pool3:
+                pool3 = h  # 1/8
+            elif i == self._pool4:
+                pool4 = h  # 1/16
+        h = self.drop6(self.relu6(self.fc6(h)))  # 1/32
+        h = self.drop7(self.relu7(self.fc7(h)))
+        upscore2 = self.upscore2(self.score_fr(h))  # 1/16
+        s4 = self.score_pool4(pool4)
+        s4 = s4[:, :, CROP_POOL4 : CROP_POOL4 + upscore2.shape[2]]
+        s4 = s4[:, :, :, CROP_POOL4 : CROP_POOL4 + upscore2.shape[3]]
+        upscore_pool4 = self.upscore_pool4(upscore2 + s4)  # 1/8
+        s3 = self.score_pool3(pool3)
+        s3 = s3[:, :, CROP_POOL3 : CROP_POOL3 + upscore_pool4.shape[2]]
+        s3 = s3[:, :, :, CROP_POOL3 : CROP_POOL3 + upscore_pool4.shape[3]]
+        out = self.upscore8(upscore_pool4 + s3)  # 1/1
+        return out[:, :, CROP_OUT : CROP_OUT + x.shape[2], CROP_OUT : CROP_OUT + x.shape[3]]
+
+
+class SegmenterNet(nn.Module):
+    """RGB, HHA or late-fusion RGB+HHA FCN-8s (thesis sec. 4.1).
+
+    ``forward(x)``: ``x`` (B, C, H, W) float32 in [0, 1], ``C = input_channels(arch)`` (RGB/255,
+    HHA/255, or RGB/255 then HHA/255) → logits (B, num_classes, H, W). Fusion sums the streams'
+    score maps. With ``input_scale < 1`` the streams see the input resized by that factor and
+    the logits are upsampled (bilinear) back to H × W.
+    """
+
+    def __init__(
+        self, arch: str, width: float = 1.0, num_classes: int = 3, input_scale: float = 1.0
+    ) -> None:
+        super().__init__()
+        self.arch = _check_arch(arch)
+        self.width = _check_real("segmenter width", width, 0.0, 1.0, open_lo=True)
+        self.input_scale = _check_real("segmenter input_scale", input_scale, 0.0, 1.0, True)
+        if isinstance(num_classes, bool) or not isinstance(num_classes, int) or num_classes < 2:
+            raise ConfigError(f"segmenter num_classes must be an integer ≥ 2, got {num_classes!r}")
+        self.num_classes = num_classes
+        self.rgb = FCN8s(num_classes, width) if arch in ("rgb", "fusion") else None
+        self.hha = FCN8s(num_classes, width) if arch in ("hha", "fusion") else None
+        mean = (RGB_MEAN if self.rgb else ()) + (HHA_MEAN if self.hha else ())
+        std = (RGB_STD if self.rgb else ()) + (HHA_STD if self.hha else ())
+        # Constants of the architecture, not learned state: kept out of state dicts.
+        self.register_buffer("mean", torch.tensor(mean).view(1, -1, 1, 1), persistent=False)
+        self.register_buffer("std", torch.tensor(std).view(1, -1, 1, 1), persistent=False)
+
+    @property
+    def in_channels(self) -> int:
+        return input_channels(self.arch)
+
+    def config(self) -> dict[str, Any]:
+        """The keys :func:`segmenter_from_checkpoint` reads (``config["model"]``)."""
+        return {
+            "arch": self.arch,
+            "width": self.width,
+            "num_classes": self.num_classes,
+            "input_scale": self.input_scale,
+        }
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        height, width = x.shape[2], x.shape[3]
+        h = (x - self.mean) / self.std
+        if self.input_scale != 1.0:
+            size = (
+                max(1, round(height * self.input_scale)),
+                max(1, round(width * self.input_scale)),
+            )
+            h = nnf.interpolate(h, size=size, mode="bilinear", align_corners=False, antialias=False)
+        if self.rgb is not None and self.hha is not None:
+            score = self.rgb(h[:, :3]) + self.hha(h[:, 3:])  # late fusion: summed score maps
+        else:
+            stream = self.rgb if self.rgb is not None else self.hha
+            assert stream is not None
+            score = stream(h)
+        if self.input_scale != 1.0:
+            score = nnf.interpolate(
+                score, size=(height, width), mode="bilinear", align_corners=False, antialias=False
+            )
+        return score
+
+
+def _check_real(name: str, value: Any, lo: float, hi: float, open_lo: bool) -> float:
+    ok = (
+        isinstance(value, (int, float))
+        and not isinstance(value, bool)
+        and math.isfinite(value)
+        and (value > lo if open_lo else value >= lo)
+        and value <= hi
+    )
+    if not ok:
+        left = "(" if open_lo else "["
+        raise ConfigError(f"{name} must be a number in {left}{lo:g}, {hi:g}], got {value!r}")
+    return float(value)
+
+
+def model_input(
+    arch: str, rgb: torch.Tensor | None = None, hha: torch.Tensor | None = None
+) -> torch.Tensor:
+    """The network input of ``arch`` from (B, 3, H, W) RGB/255 and HHA/255 tensors: ``rgb``,
+    ``hha`` or both concatenated along channels (RGB first)."""
+    _check_arch(arch)
+    if arch in ("rgb", "fusion") and rgb is None:
+        raise InputError(f"segmenter arch {arch!r} needs an RGB input")
+    if arch in ("hha", "fusion") and hha is None:
+        raise InputError(f"segmenter arch {arch!r} needs an HHA input")
+    if arch == "rgb":
+        return rgb  # type: ignore[return-value]
+    if arch == "hha":
+        return hha  # type: ignore[return-value]
+    return torch.cat([rgb, hha], dim=1)  # type: ignore[list-item]
+
+
+def _vgg16_reference_shapes() -> dict[str, torch.Size]:
+    """Parameter shapes of ``torchvision.models.vgg16`` (built on the meta device: no memory,
+    no download)."""
+    with torch.device("meta"):
+        ref = torchvision.models.vgg16(weights=None)
+    return {k: v.shape for k, v in ref.state_dict().items()}
+
+
+def read_vgg16_weights(path: str | Path) -> dict[str, torch.Tensor]:
+    """A local torchvision VGG16 ImageNet state dict (``torch.load(..., weights_only=True)``),
+    checked key by key against ``torchvision.models.vgg16``'s shapes; a missing, unreadable,
+    pickled or foreign file is a one-line :class:`~gaitnet.errors.InputError`."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f"VGG16 weights {path} is a folder, expected a .pth file")
+    if not path.is_file():
+        raise InputError(f"VGG16 weights {path} does not exist (give a local file; gaitnet "
+                         "never downloads weights)")  # fmt: skip
+    try:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message="Detected pickle protocol")
+            state = torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError as exc:
+        if re.search(r"GLOBAL|global", str(exc)):
+            raise InputError(
+                f"VGG16 weights {path} refused: it holds pickled Python objects, not only "
+                "tensors (loaded with weights_only=True)"
+            ) from exc
+        raise InputError(f"VGG16 weights {path} cannot be read (not a torch file)") from exc
+    except Exception as exc:  # truncated or foreign files raise many kinds
+        raise InputError(
+            f"VGG16 weights {path} cannot be read ({one_line(exc, limit=200)})"
+        ) from exc
+    if isinstance(state, Mapping) and isinstance(state.get("state_dict"), Mapping):
+        state = state["state_dict"]
+    if not isinstance(state, Mapping):
+        raise InputError(f"VGG16 weights {path} holds a {type(state).__name__}, not a state dict")
+    expected = _vgg16_reference_shapes()
+    for key, shape in expected.items():
+        value = state.get(key)
+        if not isinstance(value, torch.Tensor) or value.shape != shape:
+            found = "missing" if value is None else getattr(value, "shape", type(value).__name__)
+            raise InputError(
+                f"VGG16 weights {path}: not a torchvision vgg16 state dict (key {key!r}: "
+                f"expected {tuple(shape)}, found {found})"
+            )
+        if not value.is_floating_point() or not torch.isfinite(value).all():
+            raise InputError(f"VGG16 weights {path}: key {key!r} is not finite floating point")
+    return {k: state[k].to(torch.float32) for k in expected}
+
+
+def load_vgg16_weights(net: SegmenterNet, state: Mapping[str, torch.Tensor]) -> None:
+    """Initialise every stream of ``net`` (width 1.0) from a VGG16 state dict
+    (:func:`read_vgg16_weights`): ``features.*`` into the VGG layers, ``classifier.0``
+    (25088 → 4096) reshaped to ``fc6`` (4096, 512, 7, 7), ``classifier.3`` to ``fc7``
+    (4096, 4096, 1, 1), as the FCN authors did. Score and upsampling layers keep their FCN
+    initialisation."""
+    if net.width != 1.0:
+        raise ConfigError(
+            f"VGG16 weights fit only the published width 1.0, the model has width {net.width:g}"
+        )
+    features = {k[len("features.") :]: v for k, v in state.items() if k.startswith("features.")}
+    for stream in (net.rgb, net.hha):
+        if stream is None:
+            continue
+        stream.features.load_state_dict(features)
+        with torch.no_grad():
+            stream.fc6.weight.copy_(state["classifier.0.weight"].view(stream.fc6.weight.shape))
+            stream.fc6.bias.copy_(state["classifier.0.bias"])
+            stream.fc7.weight.copy_(state["classifier.3.weight"].view(stream.fc7.weight.shape))
+            stream.fc7.bias.copy_(state["classifier.3.bias"])
+
+
+def build_segmenter(
+    arch: str,
+    width: float = 1.0,
+    num_classes: int = 3,
+    input_scale: float = 1.0,
+    vgg16_weights: str | Path | None = None,
+) -> SegmenterNet:
+    """A :class:`SegmenterNet`, optionally started from local ImageNet VGG16 weights
+    (:func:`read_vgg16_weights`, read before the net is built; ``width`` must then be 1.0)."""
+    if vgg16_weights is not None and width != 1.0:
+        raise ConfigError(
+            f"VGG16 weights {vgg16_weights}: ImageNet weights fit only the published width "
+            f"1.0, not width {width!r}"
+        )
+    state = None if vgg16_weights is None else read_vgg16_weights(vgg16_weights)
+    net = SegmenterNet(arch, width=width, num_classes=num_classes, input_scale=input_scale)
+    if state is not None:
+        load_vgg16_weights(net, state)
+    return net
+
+
+def segmenter_from_checkpoint(ckpt: Mapping[str, Any], source: str = "checkpoint") -> SegmenterNet:
+    """The trained :class:`SegmenterNet` of a checkpoint dict written by
+    ``train/segmenter.py``: ``ckpt["config"]["model"]`` gives ``arch``, ``width``,
+    ``num_classes``, ``input_scale``; ``ckpt["model"]`` the state dict. ``source`` (the file)
+    names the checkpoint in errors. Returned in eval mode on the CPU."""
+    if not isinstance(ckpt, Mapping):
+        raise InputError(f"{source}: not a checkpoint dict")
+    config = ckpt.get("config")
+    model_cfg = config.get("model") if isinstance(config, Mapping) else None
+    if not isinstance(model_cfg, Mapping):
+        raise InputError(f"{source}: lacks the mapping config.model (a segmenter checkpoint?)")
+    missing = [k for k in ("arch", "width", "num_classes", "input_scale") if k not in model_cfg]
+    if missing:
+        raise InputError(f"{source}: config.model lacks key(s) {missing}")
+    try:
+        net = SegmenterNet(
+            model_cfg["arch"],
+            width=model_cfg["width"],
+            num_classes=model_cfg["num_classes"],
+            input_scale=model_cfg["input_scale"],
+        )
+    except ConfigError as exc:
+        raise InputError(f"{source}: config.model: {exc}") from exc
+    state = ckpt.get("model")
+    if not isinstance(state, Mapping):
+        raise InputError(f"{source}: key 'model' must be a state dict")
+    try:
+        net.load_state_dict(state)
+    except (RuntimeError, ValueError, KeyError, TypeError) as exc:
+        raise InputError(
+            f"{source}: its model state does not fit config.model ({one_line(exc, limit=300)})"
+        ) from exc
+    return net.eval()
