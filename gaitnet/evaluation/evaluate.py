@@ -14,7 +14,12 @@ inputs allow, in SI units:
   matched in time, the unmatched ones counted in ``counts``
   (:mod:`gaitnet.evaluation.strides`).
 
-More keys (strides, foot trajectories, segmentation) join as the stages producing them land.
+- ``pixel_acc``, ``miou``, ``fw_iou`` and ``iou`` {background, foot, leg} from
+  ``RESULT_DIR/labels/*.png`` (``gaitnet segment``) against the session's
+  ``groundtruth/labels/`` or a labelled set's ``labels/`` or labelme JSON
+  (:mod:`gaitnet.evaluation.label_maps`); ``SESSION`` may then be a labelled set.
+
+More keys (foot trajectories) join as the stages producing them land.
 
 Every input is checked where it is read: a result folder that is missing or a file, a
 ``joints.npz`` that is not a readable archive of the right keys, dtypes and shapes, NaN or inf
@@ -34,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from gaitnet.errors import GaitnetError, InputError, SessionError
+from gaitnet.evaluation.label_maps import LABELS_DIR, evaluate_label_maps
 from gaitnet.evaluation.metrics import ate_yaw_aligned, match_times, mpjpe
 from gaitnet.evaluation.strides import read_strides, stride_metrics
 from gaitnet.io.atomic import atomic_write_text
@@ -124,10 +130,18 @@ def evaluate_result(result_dir: str | Path, session_dir: str | Path) -> ResultEv
         raise InputError(f"{result_dir}: is not a folder (give the result folder)")
     if not session_dir.is_dir():
         raise SessionError(f"{session_dir}: session folder not found")
-    if not gt.is_dir():
-        raise SessionError(f"{gt}: no ground truth (only simulated sessions have it)")
     metrics: dict[str, float | dict[str, float]] = {}
     counts: dict[str, int] = {}
+    labels = result_dir / LABELS_DIR
+    if labels.is_dir():
+        found, n = evaluate_label_maps(labels, session_dir)
+        metrics.update(found)
+        counts.update(n)
+    needs_gt = not labels.is_dir() or any(
+        (result_dir / f).exists() for f in (JOINTS_FILE, TRAJECTORY_FILE, STRIDES_FILE)
+    )
+    if needs_gt and not gt.is_dir():
+        raise SessionError(f"{gt}: no ground truth (only simulated sessions have it)")
     joints = result_dir / JOINTS_FILE
     if joints.exists():
         t_est, p_est = _load_joints(joints, InputError)
@@ -159,8 +173,8 @@ def evaluate_result(result_dir: str | Path, session_dir: str | Path) -> ResultEv
         counts.update(unmatched)
     if not metrics:
         raise InputError(
-            f"{result_dir}: nothing to evaluate (expected {JOINTS_FILE}, {TRAJECTORY_FILE} "
-            f"and/or {STRIDES_FILE})"
+            f"{result_dir}: nothing to evaluate (expected {JOINTS_FILE}, {TRAJECTORY_FILE}, "
+            f"{STRIDES_FILE} and/or {LABELS_DIR}/)"
         )
     return ResultEvaluation(metrics, counts)
 
