@@ -1,0 +1,503 @@
+"""Labelled segmentation frames from a ``gaitnet simulate-dataset`` or labelme folder (sec. 4.1.2).
+
+A folder (``data/README.md`` for users' own labelme folders)::
+
+    images/<id>.png|.jpg   8-bit RGB; images/<id>.json beside it: labelme polygons (optional)
+    depth/<id>.png         16-bit depth aligned to RGB, units of camera.yaml's depth_scale_m
+    labels/<id>.png        label map 0 background, 1 foot, 2 leg, 255 ignore (when no JSON)
+    instances/<id>.png     side map 0 none, 1 left, 2 right (optional, when no JSON)
+    camera.yaml            width, height, fx, fy, cx, cy [, depth_scale_m: 0.001]
+    labels.txt             labelme class list (optional; default __ignore__, _background_,
+                           foot, leg)
+    frames.csv             id, gravity_cx, gravity_cy, gravity_cz (optional: unit gravity in
+                           the camera frame, pointing down; a missing file, row or empty cell =
+                           no IMU, HHA uses its no-gravity fallback)
+    train.txt, val.txt, test.txt   split files (optional), one frame id per line
+
+Labels come from ``images/<id>.json`` through labelme's own rasteriser
+(:func:`gaitnet.io.labelme_io.read_labelme`) when it exists, else from ``labels/<id>.png``.
+Sides from the JSON: a shape's ``group_id`` 1 is left and 2 right (what gaitnet writes),
+otherwise its ``description`` saying ``left`` or ``right``, otherwise none; they are rasterised
+by the same labelme function over the same shapes in the same order, so overlaps resolve as in
+the label map. Without JSON, sides come from ``instances/<id>.png`` (all 0 when absent). Sides
+are kept only on foot and leg pixels.
+
+HHA (:func:`gaitnet.segmentation.hha.hha_encode`) is computed once per frame and cached in
+``hha/<id>.png`` inside the folder (written atomically). The PNG carries a text chunk
+``gaitnet-hha`` with a hash of the HHA settings (:meth:`~gaitnet.segmentation.hha.HhaParams.
+fingerprint`), the intrinsics, the frame's gravity and the depth file's bytes: a cache entry
+whose hash differs (settings, code version or inputs changed) is recomputed and replaced. A
+folder that cannot be written is read without a cache (logged once).
+
+Splits: :func:`read_split` / :func:`write_split` (text, one id per line, ``#`` comments and
+blank lines ignored). A folder without split files gets :func:`default_split`: each id goes to
+train / val / test by a hash of the id alone (80 / 10 / 10 %), so the split is the same on
+every machine and adding frames never moves an existing frame to another split.
+
+Every problem with a file is an :class:`~gaitnet.errors.InputError` with one line naming it:
+missing or undecodable images, depth or labels, sizes that differ from camera.yaml, label or
+side values outside the conventions, a JSON whose ``imagePath`` is not its frame's image, ids
+that are not plain file names (``..``, ``/``) or have no image, bad camera.yaml / frames.csv
+values.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import logging
+import math
+import re
+from collections.abc import Sequence
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+import yaml
+
+from gaitnet.errors import InputError
+from gaitnet.io.atomic import atomic_save, atomic_write_text
+from gaitnet.io.labelme_io import CLASS_VALUES, read_labelme, read_labels_txt
+from gaitnet.io.types import CameraIntrinsics
+from gaitnet.segmentation.augment import AugmentParams, Sample, augment_sample
+from gaitnet.segmentation.hha import HhaParams, hha_encode
+
+log = logging.getLogger(__name__)
+
+__all__ = [
+    "SPLIT_FRACTIONS",
+    "SegmentationFolder",
+    "default_split",
+    "list_frames",
+    "read_camera_yaml",
+    "read_gravity_csv",
+    "read_split",
+    "write_split",
+]
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+SPLIT_FRACTIONS = {"train": 0.8, "val": 0.1, "test": 0.1}
+HHA_TEXT_KEY = "gaitnet-hha"
+LABEL_VALUES = (0, 1, 2, 255)
+SIDE_VALUES = (0, 1, 2)
+SIDE_NAMES = {"left": 1, "right": 2}
+MAX_ID_LENGTH = 200
+_ID = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
+
+
+# ----------------------------------------------------------------------------------- ids
+
+
+def _check_id(frame_id: str, where: str) -> str:
+    if (
+        not isinstance(frame_id, str)
+        or not _ID.match(frame_id)
+        or ".." in frame_id
+        or len(frame_id) > MAX_ID_LENGTH
+    ):
+        raise InputError(
+            f"{where}: frame id {frame_id!r:.60} is not a plain file name (letters, digits, "
+            "'_', '-', '.'; no '..' or '/')"
+        )
+    return frame_id
+
+
+def read_split(path: str | Path, root: str | Path | None = None) -> list[str]:
+    """Frame ids of a split file (one per line; blank lines and ``#`` comments skipped).
+
+    Ids must be plain file names and unique; with ``root``, each must have an image in
+    ``root/images`` (else an :class:`InputError` naming the split file and the id).
+    """
+    path = Path(path)
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read split file ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not UTF-8 text (bad byte at offset {exc.start})") from None
+    ids: list[str] = []
+    seen: set[str] = set()
+    for n, line in enumerate(text.splitlines(), 1):
+        item = line.split("#", 1)[0].strip()
+        if not item:
+            continue
+        _check_id(item, f"{path}:{n}")
+        if item in seen:
+            raise InputError(f"{path}:{n}: frame id {item!r} listed twice")
+        seen.add(item)
+        ids.append(item)
+    if root is not None:
+        for frame_id in ids:
+            if _find_image(Path(root), frame_id) is None:
+                raise InputError(
+                    f"{path}: unknown frame id {frame_id!r} (no image {frame_id}.png or .jpg "
+                    f"in {Path(root) / 'images'})"
+                )
+    return ids
+
+
+def write_split(path: str | Path, ids: Sequence[str]) -> None:
+    """Write a split file (one id per line) atomically; ids are checked as in read_split."""
+    ids = list(ids)
+    for frame_id in ids:
+        _check_id(frame_id, str(path))
+    if len(set(ids)) != len(ids):
+        raise InputError(f"{path}: frame ids listed twice")
+    atomic_write_text(path, "".join(f"{i}\n" for i in ids))
+
+
+def default_split(
+    ids: Sequence[str], fractions: dict[str, float] | None = None
+) -> dict[str, list[str]]:
+    """Deterministic split by a hash of each id alone (module docstring); ids keep their order.
+
+    ``fractions`` (default :data:`SPLIT_FRACTIONS`) maps split name → share (summing to 1).
+    """
+    fractions = fractions or SPLIT_FRACTIONS
+    total = sum(fractions.values())
+    if not fractions or not math.isclose(total, 1.0, abs_tol=1e-6):
+        raise InputError(f"split fractions must sum to 1, got {fractions}")
+    bounds = np.cumsum(list(fractions.values()))
+    out: dict[str, list[str]] = {name: [] for name in fractions}
+    names = list(fractions)
+    for frame_id in ids:
+        digest = hashlib.sha256(f"gaitnet-split:{frame_id}".encode()).digest()
+        x = int.from_bytes(digest[:8], "big") / 2.0**64
+        out[names[min(int(np.searchsorted(bounds, x, side="right")), len(names) - 1)]].append(
+            frame_id
+        )
+    return out
+
+
+def _find_image(root: Path, frame_id: str) -> Path | None:
+    for suffix in IMAGE_SUFFIXES:
+        path = root / "images" / f"{frame_id}{suffix}"
+        if path.is_file():
+            return path
+    return None
+
+
+def list_frames(root: str | Path) -> list[str]:
+    """Sorted ids of the labelled frames: an image with a labelme JSON or a label PNG."""
+    root = Path(root)
+    images = root / "images"
+    if not images.is_dir():
+        raise InputError(f"{root}: no images/ folder (not a segmentation data set)")
+    ids = set()
+    for path in images.iterdir():
+        if path.suffix.lower() not in IMAGE_SUFFIXES or not _ID.match(path.stem):
+            continue
+        if (images / f"{path.stem}.json").is_file() or (
+            root / "labels" / f"{path.stem}.png"
+        ).is_file():
+            ids.add(path.stem)
+    return sorted(ids)
+
+
+# ------------------------------------------------------------------ camera.yaml, frames.csv
+
+
+def read_camera_yaml(path: Path) -> tuple[CameraIntrinsics, float]:
+    """(intrinsics, depth scale [m per unit]) of a folder's camera.yaml."""
+    try:
+        data = yaml.safe_load(path.read_bytes())
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    except yaml.YAMLError as exc:
+        raise InputError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+    if not isinstance(data, dict):
+        raise InputError(f"{path}: must be a mapping of width, height, fx, fy, cx, cy")
+    keys = ("width", "height", "fx", "fy", "cx", "cy")
+    missing = [k for k in keys if k not in data]
+    if missing:
+        raise InputError(f"{path}: missing key(s) {missing}")
+    unknown = sorted(set(data) - {*keys, "depth_scale_m", "distortion"})
+    if unknown:
+        raise InputError(f"{path}: unknown key(s) {unknown}")
+    try:
+        intr = CameraIntrinsics(**{k: data[k] for k in keys if k in data})
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{path}: {exc}") from None
+    scale = data.get("depth_scale_m", 0.001)
+    if (
+        isinstance(scale, bool)
+        or not isinstance(scale, (int, float))
+        or not math.isfinite(scale)
+        or not 0 < scale <= 1
+    ):
+        raise InputError(f"{path}: depth_scale_m must be within (0, 1] m, got {scale!r}")
+    return intr, float(scale)
+
+
+def read_gravity_csv(path: Path) -> dict[str, np.ndarray | None]:
+    """id → unit gravity (camera frame, pointing down) or None (empty cells) from frames.csv."""
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not UTF-8 text (bad byte at offset {exc.start})") from None
+    reader = csv.DictReader(io.StringIO(text))
+    cols = ("gravity_cx", "gravity_cy", "gravity_cz")
+    if reader.fieldnames is None or "id" not in reader.fieldnames:
+        raise InputError(f"{path}: needs a header with an 'id' column")
+    if not set(cols) <= set(reader.fieldnames):
+        return {}
+    out: dict[str, np.ndarray | None] = {}
+    for n, row in enumerate(reader, 2):
+        cells = [(row.get(c) or "").strip() for c in cols]
+        frame_id = (row.get("id") or "").strip()
+        if not any(cells):
+            out[frame_id] = None
+            continue
+        try:
+            g = np.array([float(c) for c in cells])
+        except ValueError:
+            raise InputError(f"{path}:{n}: gravity {cells} is not three numbers") from None
+        norm = float(np.linalg.norm(g))
+        if not np.isfinite(g).all() or not 0.5 < norm < 2.0:
+            raise InputError(f"{path}:{n}: gravity {cells} is not a unit vector")
+        out[frame_id] = g / norm
+    return out
+
+
+# ------------------------------------------------------------------------------ readers
+
+
+def _imread(path: Path, flags: int, what: str) -> np.ndarray:
+    if not path.is_file():
+        raise InputError(f"{path}: {what} not found")
+    data = np.fromfile(path, np.uint8)
+    image = cv2.imdecode(data, flags) if data.size else None
+    if image is None:
+        raise InputError(f"{path}: cannot decode {what} (corrupt or not an image)")
+    return image
+
+
+def _check_size(path: Path, image: np.ndarray, intr: CameraIntrinsics, what: str) -> None:
+    if image.shape[:2] != (intr.height, intr.width):
+        raise InputError(
+            f"{path}: {what} is {image.shape[1]}×{image.shape[0]}, expected "
+            f"{intr.width}×{intr.height} (camera.yaml)"
+        )
+
+
+def _check_values(path: Path, image: np.ndarray, allowed: tuple[int, ...], what: str) -> None:
+    bad = np.setdiff1d(np.unique(image), allowed)
+    if bad.size:
+        raise InputError(f"{path}: {what} has values {bad[:5].tolist()}, allowed {allowed}")
+
+
+def _side_of(shape: dict) -> str:
+    group = shape.get("group_id")
+    if group in (1, 2) and not isinstance(group, bool):
+        return "left" if group == 1 else "right"
+    text = str(shape.get("description") or "").lower()
+    has = [name for name in SIDE_NAMES if re.search(rf"\b{name}\b", text)]
+    return has[0] if len(has) == 1 else "none"
+
+
+def labelme_sides(json_path: Path, height: int, width: int) -> np.ndarray:
+    """Side map (uint8) of a labelme JSON already checked by ``read_labelme``."""
+    from labelme.utils import shapes_to_label
+
+    doc = json.loads(json_path.read_bytes().decode("utf-8"))
+    shapes = [{**s, "label": _side_of(s), "group_id": None} for s in doc["shapes"]]
+    side, _ = shapes_to_label((height, width), shapes, {"none": 0, **SIDE_NAMES})
+    return side.astype(np.uint8)
+
+
+# ------------------------------------------------------------------------------ the set
+
+
+class SegmentationFolder(torch.utils.data.Dataset):
+    """Frames of one folder (module docstring) as tensors for the segmenter.
+
+    ``ids``: frame ids, a split file's path (its ids checked against the folder), or None
+    (every labelled frame, :func:`list_frames`). ``augment``: training augmentations
+    (:mod:`gaitnet.segmentation.augment`) or None. Item ``k`` is a dict: ``rgb`` float32 (3, H,
+    W) in [0, 1], ``hha`` float32 (3, H, W) in [0, 1] (HHA / 255), ``label`` int64 (H, W) (255
+    ignore), ``side`` int64 (H, W), ``id`` str. Augmentation draws from a generator seeded by
+    ``(seed, epoch, k)``: the same item of the same epoch is augmented the same way in every
+    process and after a resume; call :meth:`set_epoch` at the start of every epoch.
+    """
+
+    def __init__(
+        self,
+        root: str | Path,
+        ids: Sequence[str] | str | Path | None = None,
+        augment: AugmentParams | None = None,
+        hha: HhaParams | None = None,
+        cache_hha: bool = True,
+        seed: int = 0,
+    ) -> None:
+        self.root = Path(root)
+        if not self.root.is_dir():
+            raise InputError(f"{self.root}: data set folder not found")
+        if isinstance(ids, (str, Path)):
+            self.ids = read_split(ids, self.root)
+        elif ids is None:
+            self.ids = list_frames(self.root)
+        else:
+            self.ids = [_check_id(i, str(self.root)) for i in ids]
+            for frame_id in self.ids:
+                if _find_image(self.root, frame_id) is None:
+                    raise InputError(
+                        f"{self.root / 'images'}: no image for frame id {frame_id!r} "
+                        "(.png, .jpg or .jpeg)"
+                    )
+        self.augment = augment
+        self.hha_params = hha or HhaParams()
+        self.cache_hha = cache_hha
+        self.seed = int(seed)
+        self.epoch = 0
+        self.intrinsics, self.depth_scale_m = read_camera_yaml(self.root / "camera.yaml")
+        self.K = self.intrinsics.K
+        labels_txt = self.root / "labels.txt"
+        self.class_values = read_labels_txt(labels_txt) if labels_txt.exists() else CLASS_VALUES
+        frames_csv = self.root / "frames.csv"
+        self.gravity = read_gravity_csv(frames_csv) if frames_csv.exists() else {}
+        self._cache_warned = False
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def set_epoch(self, epoch: int) -> None:
+        """Augmentations of epoch ``epoch`` (class docstring)."""
+        self.epoch = int(epoch)
+
+    # --- files of one frame
+
+    def image_path(self, frame_id: str) -> Path:
+        path = _find_image(self.root, frame_id)
+        if path is None:
+            raise InputError(f"{self.root / 'images'}: no image for frame id {frame_id!r}")
+        return path
+
+    def read_rgb(self, frame_id: str) -> np.ndarray:
+        path = self.image_path(frame_id)
+        bgr = _imread(path, cv2.IMREAD_COLOR, "colour image")
+        _check_size(path, bgr, self.intrinsics, "colour image")
+        return np.ascontiguousarray(bgr[:, :, ::-1])
+
+    def read_depth(self, frame_id: str) -> tuple[np.ndarray, bytes]:
+        """Depth [m] (0 invalid) and the PNG's bytes."""
+        path = self.root / "depth" / f"{frame_id}.png"
+        if not path.is_file():
+            raise InputError(f"{path}: depth image not found")
+        raw = path.read_bytes()
+        image = cv2.imdecode(np.frombuffer(raw, np.uint8), cv2.IMREAD_UNCHANGED)
+        if image is None:
+            raise InputError(f"{path}: cannot decode depth image (corrupt or not a PNG)")
+        if image.dtype != np.uint16 or image.ndim != 2:
+            raise InputError(
+                f"{path}: depth must be a single-channel 16-bit PNG, got {image.dtype} "
+                f"with {1 if image.ndim == 2 else image.shape[2]} channels"
+            )
+        _check_size(path, image, self.intrinsics, "depth image")
+        return image.astype(np.float32) * np.float32(self.depth_scale_m), raw
+
+    def read_labels(self, frame_id: str) -> tuple[np.ndarray, np.ndarray]:
+        """(label map, side map), uint8 (module docstring for the sources)."""
+        h, w = self.intrinsics.height, self.intrinsics.width
+        json_path = self.root / "images" / f"{frame_id}.json"
+        if json_path.is_file():
+            label, _, image = read_labelme(json_path, self.class_values)
+            if image != self.image_path(frame_id).resolve():
+                raise InputError(
+                    f"{json_path}: imagePath names {image.name}, not the frame's image "
+                    f"{self.image_path(frame_id).name}"
+                )
+            _check_size(json_path, label, self.intrinsics, "annotation")
+            side = labelme_sides(json_path, h, w)
+        else:
+            path = self.root / "labels" / f"{frame_id}.png"
+            if not path.is_file():
+                raise InputError(
+                    f"{path}: label map not found (and no labelme JSON {json_path.name})"
+                )
+            label = _imread(path, cv2.IMREAD_UNCHANGED, "label map")
+            if label.dtype != np.uint8 or label.ndim != 2:
+                raise InputError(f"{path}: label map must be a single-channel 8-bit PNG")
+            _check_size(path, label, self.intrinsics, "label map")
+            _check_values(path, label, LABEL_VALUES, "label map")
+            side_path = self.root / "instances" / f"{frame_id}.png"
+            if side_path.is_file():
+                side = _imread(side_path, cv2.IMREAD_UNCHANGED, "side map")
+                if side.dtype != np.uint8 or side.ndim != 2:
+                    raise InputError(f"{side_path}: side map must be a single-channel 8-bit PNG")
+                _check_size(side_path, side, self.intrinsics, "side map")
+                _check_values(side_path, side, SIDE_VALUES, "side map")
+            else:
+                side = np.zeros((h, w), np.uint8)
+        side = np.where((label == 1) | (label == 2), side, 0).astype(np.uint8)
+        return label, side
+
+    def hha_key(self, frame_id: str, depth_png: bytes) -> str:
+        """Hash of everything the frame's HHA depends on (module docstring)."""
+        g = self.gravity.get(frame_id)
+        parts = [
+            self.hha_params.fingerprint(),
+            np.round(self.K, 9).tobytes().hex(),
+            "none" if g is None else np.round(g, 9).tobytes().hex(),
+            repr(self.depth_scale_m),
+            hashlib.sha256(depth_png).hexdigest(),
+        ]
+        return hashlib.sha256("|".join(parts).encode()).hexdigest()[:32]
+
+    def read_hha(self, frame_id: str) -> np.ndarray:
+        """The frame's HHA (H, W, 3) uint8, from the cache when it is current."""
+        depth, raw = self.read_depth(frame_id)
+        if not self.cache_hha:
+            return hha_encode(depth, self.K, self.gravity.get(frame_id), self.hha_params)
+        from PIL import Image, UnidentifiedImageError
+        from PIL.PngImagePlugin import PngInfo
+
+        key = self.hha_key(frame_id, raw)
+        path = self.root / "hha" / f"{frame_id}.png"
+        if path.is_file():
+            try:
+                with Image.open(path) as im:
+                    if im.info.get(HHA_TEXT_KEY) == key and im.mode == "RGB":
+                        hha = np.asarray(im)
+                        if hha.shape[:2] == depth.shape:
+                            return hha
+            except (UnidentifiedImageError, OSError, SyntaxError, ValueError):
+                log.info("%s: unreadable HHA cache entry, recomputing", path)
+        hha = hha_encode(depth, self.K, self.gravity.get(frame_id), self.hha_params)
+        info = PngInfo()
+        info.add_text(HHA_TEXT_KEY, key)
+        try:
+            atomic_save(path, lambda tmp: Image.fromarray(hha).save(tmp, "PNG", pnginfo=info))
+        except OSError as exc:
+            if not self._cache_warned:
+                log.warning("%s: cannot write the HHA cache (%s); not caching", path, exc)
+                self._cache_warned = True
+        return hha
+
+    def sample(self, frame_id: str) -> Sample:
+        """The frame's maps before augmentation (uint8)."""
+        rgb = self.read_rgb(frame_id)
+        label, side = self.read_labels(frame_id)
+        return Sample(rgb, self.read_hha(frame_id), label, side)
+
+    def __getitem__(self, k: int) -> dict:
+        frame_id = self.ids[k]
+        s = self.sample(frame_id)
+        if self.augment is not None:
+            rng = np.random.default_rng([self.seed, self.epoch, k])
+            s = augment_sample(s, self.augment, rng)
+        rgb = s.rgb.astype(np.float32)
+        if s.rgb.dtype == np.uint8:
+            rgb *= np.float32(1.0 / 255.0)
+        hha = s.hha.astype(np.float32) * np.float32(1.0 / 255.0)
+        return {
+            "rgb": torch.from_numpy(np.ascontiguousarray(rgb.transpose(2, 0, 1))),
+            "hha": torch.from_numpy(np.ascontiguousarray(hha.transpose(2, 0, 1))),
+            "label": torch.from_numpy(s.label.astype(np.int64)),
+            "side": torch.from_numpy(s.side.astype(np.int64)),
+            "id": frame_id,
+        }
