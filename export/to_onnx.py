@@ -2,6 +2,8 @@
 
     python export/to_onnx.py predictor --checkpoint runs/predictor/NAME/best.pt \
         --out models/predictor/NAME.onnx
+    python export/to_onnx.py segmenter --checkpoint runs/segmenter/NAME/best.pt \
+        --out models/segmenter/NAME.onnx [--height 480 --width 640]
 
 ``predictor``: the DCT-GCN motion predictor. The architecture comes from the checkpoint's
 resolved config; the export is refused unless onnxruntime reproduces PyTorch within
@@ -10,8 +12,17 @@ Prints the largest absolute difference and writes a JSON sidecar next to the mod
 (``NAME.json``): input/output names and shapes, n_past, n_future, dct_n, frame rate, the node
 layout, the training config and, when the run folder has one, the evaluation (eval.json).
 
-Each model kind is a subcommand with its own ``run_*`` function, so further kinds (e.g. a
-``segmenter``) are added as another subparser.
+``segmenter``: the FCN-8s foot/leg segmenter (``train/segmenter.py``). The net comes from the
+checkpoint (``config.model``: arch, width, num_classes, input_scale;
+gaitnet.segmentation.fcn.segmenter_from_checkpoint) and is exported for frames of
+``--height`` × ``--width`` with a dynamic batch; the export is refused unless onnxruntime
+reproduces PyTorch's logits within ``--atol`` (default 1e-4) on random inputs
+(gaitnet.segmentation.onnx_runtime.export_segmenter_onnx). The arch, width, input scale, class
+names and normalisation are stored in the model's metadata_props (what OnnxSegmenter reads);
+the JSON sidecar repeats them with the checkpoint, the training config and, when the run folder
+has one, eval.json.
+
+Each model kind is a subcommand with its own ``run_*`` function.
 """
 
 from __future__ import annotations
@@ -26,6 +37,26 @@ from typing import Any
 from gaitnet.errors import USER_ERRORS, InputError, user_error_message
 from gaitnet.io.atomic import atomic_write_text
 from gaitnet.training.scripts import ScriptParser
+
+
+def read_eval(checkpoint: Path) -> Any:
+    """The run folder's ``eval.json`` (without its config) for the sidecar, or None."""
+    eval_file = checkpoint.parent / "eval.json"
+    if not eval_file.is_file():
+        return None
+    try:
+        full = json.loads(eval_file.read_text(encoding="utf-8"))
+    except (ValueError, OSError) as exc:
+        raise InputError(f"{eval_file}: not a readable eval.json ({exc})") from exc
+    if not isinstance(full, dict):
+        raise InputError(f"{eval_file}: expected a JSON object")
+    return {k: full[k] for k in full if k not in ("config",)}
+
+
+def file_facts(out: Path) -> dict[str, Any]:
+    """Name, SHA-256 and size of a written model file."""
+    data = out.read_bytes()
+    return {"onnx": out.name, "sha256": hashlib.sha256(data).hexdigest(), "size_bytes": len(data)}
 
 
 def run_predictor(args: argparse.Namespace) -> int:
@@ -47,22 +78,11 @@ def run_predictor(args: argparse.Namespace) -> int:
           f"batches {list(report.batch_sizes)})")  # fmt: skip
 
     m = cfg.model
-    eval_file = checkpoint.parent / "eval.json"
-    metrics: Any = None
-    if eval_file.is_file():
-        try:
-            full = json.loads(eval_file.read_text(encoding="utf-8"))
-        except (ValueError, OSError) as exc:
-            raise InputError(f"{eval_file}: not a readable eval.json ({exc})") from exc
-        if not isinstance(full, dict):
-            raise InputError(f"{eval_file}: expected a JSON object")
-        metrics = {k: full[k] for k in full if k not in ("config",)}
+    metrics = read_eval(checkpoint)
     sidecar = {
         "name": cfg.name,
         "kind": "gaitnet motion predictor (DCT-GCN, thesis sec. 4.2)",
-        "onnx": out.name,
-        "sha256": hashlib.sha256(out.read_bytes()).hexdigest(),
-        "size_bytes": out.stat().st_size,
+        **file_facts(out),
         "opset": report.opset,
         "input": {"name": INPUT_NAME, "shape": ["batch", m.n_past, m.n_nodes], "dtype": "float32"},
         "output": {
@@ -101,6 +121,58 @@ def run_predictor(args: argparse.Namespace) -> int:
     return 0
 
 
+def run_segmenter(args: argparse.Namespace) -> int:
+    """Export a segmenter checkpoint (``train/segmenter.py``) and write its sidecar."""
+    from gaitnet.segmentation.fcn import segmenter_from_checkpoint
+    from gaitnet.segmentation.onnx_runtime import (
+        INPUT_NAME,
+        OUTPUT_NAME,
+        default_classes,
+        export_segmenter_onnx,
+        segmenter_metadata,
+    )
+    from gaitnet.training.checkpoint import load_checkpoint
+
+    checkpoint = Path(args.checkpoint)
+    ckpt = load_checkpoint(checkpoint)
+    model = segmenter_from_checkpoint(ckpt, str(checkpoint))
+    out = Path(args.out)
+    report = export_segmenter_onnx(
+        model, out, height=args.height, width=args.width, opset=args.opset, atol=args.atol
+    )
+    print(f"parity: max |onnxruntime - torch| = {report.max_abs_diff:.3g} (atol {args.atol:g}, "
+          f"batches {list(report.batch_sizes)}, {args.width}x{args.height})")  # fmt: skip
+    meta = segmenter_metadata(model, default_classes(model.num_classes))
+    c = model.in_channels
+    sidecar = {
+        "name": ckpt["config"].get("name"),
+        "kind": "gaitnet foot/leg segmenter (FCN-8s, thesis sec. 4.1)",
+        **file_facts(out),
+        "opset": report.opset,
+        "input": {"name": INPUT_NAME, "shape": ["batch", c, args.height, args.width],
+                  "dtype": "float32", "channels": meta["gaitnet.input"]},
+        "output": {"name": OUTPUT_NAME, "shape": ["batch", model.num_classes, args.height,
+                   args.width], "dtype": "float32", "note": "logits; labels = arg-max"},
+        **model.config(),
+        "classes": json.loads(meta["gaitnet.classes"]),
+        "normalisation": json.loads(meta["gaitnet.normalisation"]),
+        "parameters": sum(p.numel() for p in model.parameters()),
+        "parity_max_abs_diff": report.max_abs_diff,
+        "checkpoint": {
+            "path": str(checkpoint),
+            "epoch": int(ckpt["epoch"]),
+            "best_metric": float(ckpt["best_metric"]),
+            "git_hash": ckpt["git_hash"],
+        },
+        "config": ckpt["config"],
+        "metrics": read_eval(checkpoint),
+    }  # fmt: skip
+    sidecar_path = out.with_suffix(".json")
+    atomic_write_text(sidecar_path, json.dumps(sidecar, indent=1) + "\n")
+    print(f"wrote {out} ({out.stat().st_size / 1e6:.2f} MB) and {sidecar_path}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = ScriptParser(prog="export/to_onnx.py", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="kind", required=True, metavar="KIND")
@@ -110,13 +182,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--opset", type=int, default=18, help="ONNX opset (default 18)")
     p.add_argument("--atol", type=float, default=1e-4, help="parity tolerance (default 1e-4)")
     p.set_defaults(func=run_predictor)
+    p = sub.add_parser("segmenter", help="FCN-8s foot/leg segmenter checkpoint → ONNX")
+    p.add_argument("--checkpoint", required=True, help="best.pt / last.pt of train/segmenter.py")
+    p.add_argument("--out", required=True, help="ONNX file to write (sidecar: same name .json)")
+    p.add_argument("--height", type=int, default=480, help="frame height (default 480)")
+    p.add_argument("--width", type=int, default=640, help="frame width (default 640)")
+    p.add_argument("--opset", type=int, default=18, help="ONNX opset (default 18)")
+    p.add_argument("--atol", type=float, default=1e-4, help="parity tolerance (default 1e-4)")
+    p.set_defaults(func=run_segmenter)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the exporter: bad input (gaitnet's errors, ``OSError``) and a failed parity check
     are one line on stderr and exit status 1; anything else is a bug with a traceback."""
-    from gaitnet.motion.onnx_runtime import OnnxParityError
+    from gaitnet.io.onnx_export import OnnxParityError
+    from gaitnet.motion.onnx_runtime import OnnxParityError as PredictorParityError
 
     try:
         args = build_parser().parse_args(argv)
@@ -124,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
     except USER_ERRORS as exc:
         print(f"error: {user_error_message(exc)}", file=sys.stderr)
         return 1
-    except OnnxParityError as exc:
+    except (OnnxParityError, PredictorParityError) as exc:
         print(f"error: export failed: {user_error_message(exc)}", file=sys.stderr)
         return 1
 

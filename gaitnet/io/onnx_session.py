@@ -1,0 +1,152 @@
+"""onnxruntime sessions with checked files, providers, threads, inputs and outputs.
+
+The generic pieces of the project's ONNX model wrappers (one per model kind, e.g.
+:class:`gaitnet.segmentation.onnx_runtime.OnnxSegmenter`):
+
+- :func:`open_session`: a session on an explicit provider list with a set intra-op thread
+  count; a missing file, a folder, an unknown provider or a file onnxruntime cannot load is a
+  one-line :class:`OnnxInputError` naming the file.
+- :func:`model_metadata`: the model's ``metadata_props`` (key → string), where exporters
+  record what a runtime must know (:func:`gaitnet.io.onnx_export.export_onnx_checked`).
+- :func:`check_input`: an array checked against the expected shape (ints fixed, other entries
+  free) and converted to a C-contiguous float32 copy; a wrong rank, shape or dtype, an empty
+  batch, NaN/inf (also from float64 values beyond float32's range) is a one-line error naming
+  the file and the input.
+- :func:`run_session`: runs and refuses to return a non-finite output.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import onnxruntime as ort
+
+from gaitnet.errors import InputError, one_line
+
+__all__ = [
+    "OnnxInputError",
+    "check_input",
+    "is_ort_error",
+    "model_metadata",
+    "open_session",
+    "run_session",
+]
+
+
+class OnnxInputError(InputError):
+    """An ONNX model file is unusable or an input does not match what it expects; the one-line
+    message names the model file and the input."""
+
+
+def is_ort_error(exc: BaseException) -> bool:
+    """onnxruntime's own exceptions (``onnxruntime.capi...Fail``, ``InvalidProtobuf``, ...)."""
+    return type(exc).__module__.startswith("onnxruntime")
+
+
+def open_session(
+    path: str | Path,
+    threads: int = 1,
+    providers: Sequence[str] = ("CPUExecutionProvider",),
+) -> ort.InferenceSession:
+    """An onnxruntime session on ``path`` with ``intra_op_num_threads = threads`` (0: the
+    runtime's default), one inter-op thread and exactly ``providers`` (in order)."""
+    path = Path(path)
+    if not isinstance(threads, int) or isinstance(threads, bool) or not 0 <= threads <= 1024:
+        raise OnnxInputError(f"ONNX threads must be an integer in [0, 1024], got {threads!r}")
+    if isinstance(providers, str) or not providers:
+        raise OnnxInputError(f"ONNX providers must be a non-empty list of names, got {providers!r}")
+    available = ort.get_available_providers()
+    unknown = [p for p in providers if p not in available]
+    if unknown:
+        raise OnnxInputError(
+            f"ONNX providers {unknown} are not available in this onnxruntime (available: "
+            f"{available})"
+        )
+    if path.is_dir():
+        raise OnnxInputError(f"ONNX model {path} is a folder, expected an .onnx file")
+    if not path.is_file():
+        raise OnnxInputError(f"ONNX model {path} does not exist")
+    options = ort.SessionOptions()
+    options.intra_op_num_threads = int(threads)
+    options.inter_op_num_threads = 1
+    try:
+        return ort.InferenceSession(str(path), options, providers=list(providers))
+    except Exception as exc:
+        if not is_ort_error(exc):
+            raise
+        raise OnnxInputError(
+            f"ONNX model {path} cannot be loaded ({one_line(exc, limit=300)})"
+        ) from exc
+
+
+def model_metadata(session: ort.InferenceSession) -> dict[str, str]:
+    """The model's ``metadata_props`` as a dict."""
+    return dict(session.get_modelmeta().custom_metadata_map)
+
+
+def check_input(
+    x: object,
+    path: str | Path,
+    name: str,
+    expected: Sequence[int | str | None],
+    labels: Sequence[str] | None = None,
+) -> np.ndarray:
+    """``x`` as a C-contiguous float32 array after checking it against ``expected`` (fixed
+    ints; strings or None are free dimensions, the first one the batch). ``labels`` names the
+    free dimensions in messages (default: the model's names)."""
+    try:
+        arr = np.asarray(x)
+    except (ValueError, TypeError) as exc:  # ragged nested lists
+        raise OnnxInputError(f"ONNX model {path}: input {name!r} is not an array ({exc})") from exc
+    if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
+        raise OnnxInputError(
+            f"ONNX model {path}: input {name!r} needs real numbers (fed as float32), got dtype "
+            f"{arr.dtype}"
+        )
+    ok = arr.ndim == len(expected) and all(
+        not isinstance(e, int) or e == g for e, g in zip(expected, arr.shape, strict=False)
+    )
+    if not ok:
+        shown = tuple(
+            e if isinstance(e, int) else (labels[i] if labels else (e or "?"))
+            for i, e in enumerate(expected)
+        )
+        raise OnnxInputError(
+            f"ONNX model {path}: input {name!r} expects shape {shown}, given {arr.shape}"
+        )
+    if arr.size == 0:
+        raise OnnxInputError(f"ONNX model {path}: input {name!r} is empty (shape {arr.shape})")
+    with np.errstate(over="ignore", invalid="ignore"):
+        feed = np.ascontiguousarray(arr, dtype=np.float32)
+    bad = ~np.isfinite(feed)
+    if bad.any():
+        first = tuple(int(i) for i in np.argwhere(bad)[0])
+        raise OnnxInputError(
+            f"ONNX model {path}: input {name!r} holds NaN/inf or values beyond float32's range, "
+            f"first at index {first}"
+        )
+    return feed
+
+
+def run_session(
+    session: ort.InferenceSession,
+    path: str | Path,
+    feed: Mapping[str, np.ndarray],
+    output_names: Sequence[str],
+) -> list[np.ndarray]:
+    """``session.run`` with onnxruntime's failures as one line; every output finite."""
+    try:
+        outputs = session.run(list(output_names), dict(feed))
+    except Exception as exc:
+        if not is_ort_error(exc):
+            raise
+        raise OnnxInputError(f"ONNX model {path} failed ({one_line(exc, limit=300)})") from exc
+    for name, value in zip(output_names, outputs, strict=True):
+        if not np.all(np.isfinite(value)):
+            raise OnnxInputError(
+                f"ONNX model {path}: output {name!r} is not finite for a finite input (a broken "
+                "model file?)"
+            )
+    return outputs
