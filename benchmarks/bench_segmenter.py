@@ -1,0 +1,179 @@
+"""Inference time of the segmenter per 640×480 frame: PyTorch eager vs onnxruntime, 1 and 2 threads.
+
+For each variant (arch, width, input_scale) a net with random weights is built, exported with
+the parity check (gaitnet.segmentation.onnx_runtime.export_segmenter_onnx) and timed at batch 1
+(the pipeline's per-frame case) on random frames in [0, 1]: ``torch.no_grad`` eager with
+``torch.set_num_threads(t)`` and :class:`OnnxSegmenter` (its input checks included) with
+``threads=t`` for t = 1, 2. The first call is a warm-up; a variant whose warm-up takes longer
+than ``--slow`` seconds (the published width 1) is timed once. Prints median (min) ms per frame,
+frames/s of onnxruntime on 2 threads, the machine's load average before and after, and the
+CPU. The target for the default CPU model is ≥ 15 frames/s with onnxruntime on 2 threads.
+
+    nice -n 10 python benchmarks/bench_segmenter.py                  # the default table
+    python benchmarks/bench_segmenter.py --variants fusion:0.0625:0.5 rgb:0.125:1 --runs 20
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from gaitnet.segmentation.fcn import ARCHS, SegmenterNet, input_channels
+from gaitnet.segmentation.onnx_runtime import OnnxSegmenter, export_segmenter_onnx
+
+#: arch:width:input_scale — fusion at every width (full frames and half-size inside the net),
+#: the published width 1 once, and the single streams at the CPU default.
+DEFAULT_VARIANTS = (
+    "fusion:0.0625:0.5",
+    "fusion:0.0625:1",
+    "fusion:0.125:0.5",
+    "fusion:0.125:1",
+    "fusion:0.25:0.5",
+    "fusion:0.25:1",
+    "rgb:0.0625:0.5",
+    "hha:0.0625:0.5",
+    "fusion:1:1",
+)
+
+
+def parse_variant(text: str) -> tuple[str, float, float]:
+    arch, width, scale = text.split(":")
+    if arch not in ARCHS:
+        raise argparse.ArgumentTypeError(f"arch must be one of {ARCHS}: {text}")
+    return arch, float(width), float(scale)
+
+
+def time_calls(fn: Callable[[], object], runs: int, slow_s: float) -> np.ndarray:
+    """Seconds per call after one warm-up call (one timed call if the warm-up is slow)."""
+    t0 = time.perf_counter()
+    fn()
+    if time.perf_counter() - t0 > slow_s:
+        runs = 1
+    out = np.empty(runs)
+    for i in range(runs):
+        t0 = time.perf_counter()
+        fn()
+        out[i] = time.perf_counter() - t0
+    return out
+
+
+def cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
+
+
+def bench_variant(
+    arch: str, width: float, scale: float, args: argparse.Namespace, folder: Path
+) -> dict:
+    torch.manual_seed(0)
+    net = SegmenterNet(arch, width=width, input_scale=scale).eval()
+    with torch.no_grad():  # score layers start at zero: give them values
+        for layer in (s for s in (net.rgb, net.hha) if s is not None):
+            for m in (layer.score_fr, layer.score_pool4, layer.score_pool3):
+                m.weight.normal_(0.0, 0.01)
+    path = folder / f"{arch}_{width:g}_{scale:g}.onnx"
+    t0 = time.perf_counter()
+    report = export_segmenter_onnx(
+        net, path, height=args.height, width=args.width, batch_sizes=(1,)
+    )
+    export_s = time.perf_counter() - t0
+    x = np.random.default_rng(0).random((1, input_channels(arch), args.height, args.width))
+    x = x.astype(np.float32)
+    xt = torch.from_numpy(x)
+    row = {
+        "arch": arch,
+        "width": width,
+        "input_scale": scale,
+        "params": sum(p.numel() for p in net.parameters()),
+        "onnx_mb": path.stat().st_size / 1e6,
+        "parity_max_abs_diff": report.max_abs_diff,
+        "export_s": export_s,
+    }
+    for threads in (1, 2):
+        torch.set_num_threads(threads)
+        with torch.no_grad():
+            t = time_calls(lambda: net(xt), args.runs, args.slow)
+        row[f"torch_{threads}t_ms"] = [float(np.median(t) * 1e3), float(t.min() * 1e3), len(t)]
+        seg = OnnxSegmenter(path, threads=threads)
+        t = time_calls(lambda seg=seg: seg(x), args.runs, args.slow)
+        row[f"ort_{threads}t_ms"] = [float(np.median(t) * 1e3), float(t.min() * 1e3), len(t)]
+        del seg
+    path.unlink()
+    return row
+
+
+def fmt(cell: list) -> str:
+    median, low, n = cell
+    return f"{median:8.1f} ({low:7.1f})" + ("*" if n == 1 else " ")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--variants",
+        nargs="+",
+        type=parse_variant,
+        default=None,
+        help="arch:width:input_scale ... (default: the table in the docstring)",
+    )
+    parser.add_argument("--runs", type=int, default=10, help="timed calls per measurement")
+    parser.add_argument(
+        "--slow",
+        type=float,
+        default=3.0,
+        help="warm-up seconds above which a measurement is timed once",
+    )
+    parser.add_argument("--height", type=int, default=480)
+    parser.add_argument("--width", type=int, default=640)
+    parser.add_argument("--json", help="also write the rows to this JSON file")
+    args = parser.parse_args(argv)  # fmt: skip
+    variants = args.variants or [parse_variant(v) for v in DEFAULT_VARIANTS]
+    load_before = os.getloadavg()
+    print(
+        f"{cpu_name()}, {os.cpu_count()} CPUs, nice {os.nice(0)}, torch {torch.__version__}, "
+        f"frame {args.width}x{args.height}, batch 1, load average {load_before[0]:.2f}"
+    )
+    head = (f"{'arch':6} {'width':>6} {'scale':>5} {'params':>9} {'MB':>6} | "
+            f"{'torch 1 thread':>18} {'torch 2 threads':>18} | {'ort 1 thread':>18} "
+            f"{'ort 2 threads':>18} | {'fps ort 2t':>10}")  # fmt: skip
+    print("ms per frame: median (min); * = one timed run")
+    print(head)
+    print("-" * len(head))
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="bench_segmenter_") as tmp:
+        for arch, width, scale in variants:
+            row = bench_variant(arch, width, scale, args, Path(tmp))
+            rows.append(row)
+            fps = 1e3 / row["ort_2t_ms"][0]
+            torch_cells = f"{fmt(row['torch_1t_ms'])} {fmt(row['torch_2t_ms'])}"
+            ort_cells = f"{fmt(row['ort_1t_ms'])} {fmt(row['ort_2t_ms'])}"
+            print(
+                f"{arch:6} {width:6.4g} {scale:5.2g} {row['params'] / 1e6:8.2f}M "
+                f"{row['onnx_mb']:6.2f} | {torch_cells} | {ort_cells} | {fps:10.1f}",
+                flush=True,
+            )
+    load_after = os.getloadavg()
+    print(f"load average before {load_before[0]:.2f}, after {load_after[0]:.2f} (1 min); parity "
+          f"max |ort - torch| {max(r['parity_max_abs_diff'] for r in rows):.2g}")  # fmt: skip
+    if args.json:
+        info = {"cpu": cpu_name(), "load_before": load_before, "load_after": load_after}
+        Path(args.json).write_text(json.dumps({"machine": info, "rows": rows}, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
