@@ -258,13 +258,15 @@ class SegmenterNet(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         height, width = x.shape[2], x.shape[3]
-        h = (x - self.mean) / self.std
+        h = x
         if self.input_scale != 1.0:
             size = (
                 max(1, round(height * self.input_scale)),
                 max(1, round(width * self.input_scale)),
             )
             h = nnf.interpolate(h, size=size, mode="bilinear", align_corners=False, antialias=False)
+        # After the resize (bilinear weights sum to 1, so the order does not matter): fewer pixels.
+        h = (h - self.mean) / self.std
         if self.rgb is not None and self.hha is not None:
             score = self.rgb(h[:, :3]) + self.hha(h[:, 3:])  # late fusion: summed score maps
         else:
