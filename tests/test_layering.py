@@ -22,6 +22,7 @@ LAYERS = {
     "segmentation": 4,
     "sim": 5,
     "training": 5,
+    "pipeline": 5,
     "cli": 6,
     "__init__": 6,
 }
