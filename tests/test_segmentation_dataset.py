@@ -408,3 +408,24 @@ def test_augment_params_are_checked() -> None:
         AugmentParams(scale_min=1.2, scale_max=1.0)
     with pytest.raises(ValueError, match="crop_width"):
         AugmentParams(crop_width=-1)
+
+
+def test_make_segmentation_splits_script(tmp_path: Path, capsys) -> None:
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "make_segmentation_splits", ROOT / "data" / "make_segmentation_splits.py"
+    )
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    handmade(tmp_path)
+    assert script.main([str(tmp_path), "--check"]) == 0
+    ids = sum((read_split(tmp_path / f"{n}.txt", tmp_path) for n in ("train", "val", "test")), [])
+    assert ids == ["a"] and (tmp_path / "hha" / "a.png").is_file()
+    (tmp_path / "train.txt").write_text("a\n")
+    assert script.main([str(tmp_path)]) == 0  # existing split files are kept
+    assert (tmp_path / "train.txt").read_text() == "a\n"
+    (tmp_path / "depth" / "a.png").unlink()
+    assert script.main([str(tmp_path), "--check"]) == 1
+    assert "depth/a.png: depth image not found" in capsys.readouterr().err
+    assert script.main([str(tmp_path / "nothing")]) == 1
