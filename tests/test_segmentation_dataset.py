@@ -9,6 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import torch
 import yaml
 
 from gaitnet.config import load_config
@@ -392,10 +393,20 @@ def test_dataset_augmentation_is_a_function_of_seed_epoch_and_index(simulated: P
     params = AugmentParams(scale_min=0.7, scale_max=1.3)
     a = SegmentationFolder(simulated, augment=params, seed=1)
     b = SegmentationFolder(simulated, augment=params, seed=1)
+    a.set_epoch(0)
+    b.set_epoch(0)
     x, y = a[2], b[2]
     assert all(np.array_equal(x[k], y[k]) for k in ("rgb", "hha", "label", "side"))
+    assert np.array_equal(a[2]["rgb"], x["rgb"])  # a function of (seed, epoch, index)
     b.set_epoch(1)
     assert not np.array_equal(b[2]["rgb"], x["rgb"])
+    # without set_epoch: torch's generator seeds each read (epochs differ, runs repeat)
+    c = SegmentationFolder(simulated, augment=params, seed=1)
+    torch.manual_seed(0)
+    first, second = c[2]["rgb"], c[2]["rgb"]
+    assert not np.array_equal(first, second)
+    torch.manual_seed(0)
+    assert np.array_equal(c[2]["rgb"], first)
     plain = SegmentationFolder(simulated, augment=NO_AUG)[0]
     direct = SegmentationFolder(simulated)[0]
     assert all(np.array_equal(plain[k], direct[k]) for k in ("rgb", "hha", "label", "side"))

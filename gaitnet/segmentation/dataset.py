@@ -320,9 +320,14 @@ class SegmentationFolder(torch.utils.data.Dataset):
     (every labelled frame, :func:`list_frames`). ``augment``: training augmentations
     (:mod:`gaitnet.segmentation.augment`) or None. Item ``k`` is a dict: ``rgb`` float32 (3, H,
     W) in [0, 1], ``hha`` float32 (3, H, W) in [0, 1] (HHA / 255), ``label`` int64 (H, W) (255
-    ignore), ``side`` int64 (H, W), ``id`` str. Augmentation draws from a generator seeded by
-    ``(seed, epoch, k)``: the same item of the same epoch is augmented the same way in every
-    process and after a resume; call :meth:`set_epoch` at the start of every epoch.
+    ignore), ``side`` int64 (H, W), ``id`` str.
+
+    Augmentation randomness: after :meth:`set_epoch`, item ``k`` draws from a generator seeded
+    by ``(seed, epoch, k)`` (the same augmentation in every process, worker and after a resume,
+    whatever the loading order). Until then each read draws a fresh seed from torch's random
+    generator (in DataLoader workers torch seeds it per worker and epoch), so epochs differ and
+    runs repeat under ``torch.manual_seed``, but a resume repeats them only if it restores
+    torch's generator states.
     """
 
     def __init__(
@@ -353,7 +358,7 @@ class SegmentationFolder(torch.utils.data.Dataset):
         self.hha_params = hha or HhaParams()
         self.cache_hha = cache_hha
         self.seed = int(seed)
-        self.epoch = 0
+        self.epoch: int | None = None
         self.intrinsics, self.depth_scale_m = read_camera_yaml(self.root / "camera.yaml")
         self.K = self.intrinsics.K
         labels_txt = self.root / "labels.txt"
@@ -488,7 +493,11 @@ class SegmentationFolder(torch.utils.data.Dataset):
         frame_id = self.ids[k]
         s = self.sample(frame_id)
         if self.augment is not None:
-            rng = np.random.default_rng([self.seed, self.epoch, k])
+            if self.epoch is None:
+                draw = int(torch.randint(0, 2**62, (1,)).item())
+                rng = np.random.default_rng([self.seed, draw, k])
+            else:
+                rng = np.random.default_rng([self.seed, self.epoch, k])
             s = augment_sample(s, self.augment, rng)
         rgb = s.rgb.astype(np.float32)
         if s.rgb.dtype == np.uint8:
