@@ -43,6 +43,7 @@ from gaitnet.cli.commands import (
     _cmd_check,
     _cmd_convert,
     _cmd_evaluate,
+    _cmd_segment,
     _cmd_simulate,
     _cmd_simulate_dataset,
     _cmd_vio,
@@ -184,6 +185,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides")
     p.set_defaults(func=_cmd_vio)
+
+    p = sub.add_parser(
+        "segment",
+        help="segment feet and legs in every frame of a session (label maps, foot keypoints)",
+        description="Run the RGB+HHA segmenter (thesis sec. 4.1) with onnxruntime on every frame "
+        "of a session folder or .bag: label maps, foot keypoints (eq. 4.1) with their 3-D "
+        "points, a contact sheet and a summary (docs/segmenter.md).",
+    )
+    p.add_argument("session", metavar="SESSION", help="session folder or RealSense .bag file")
+    p.add_argument("--out", metavar="DIR", type=_output_folder, required=True, help="output folder")
+    p.add_argument(
+        "--model",
+        metavar="X.onnx",
+        default=None,
+        help="segmenter exported by export/to_onnx.py (default: the committed small fusion model)",
+    )
+    p.add_argument(
+        "--threads",
+        metavar="N",
+        type=_integer,
+        default=2,
+        help="onnxruntime threads (0: its default; default 2)",
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.set_defaults(func=_cmd_segment)
 
     return parser
 

@@ -174,3 +174,30 @@ def _cmd_vio(args: argparse.Namespace) -> int:
         print(f"walking speed {info['walking_speed_mps']:.2f} m/s")
     print(f"wrote {out} (summary.json, strides.csv, trajectory.png)")
     return 0
+
+
+def _cmd_segment(args: argparse.Namespace) -> int:
+    from gaitnet.io import open_session
+    from gaitnet.io.atomic import check_output_folder
+    from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
+    from gaitnet.segmentation.segment_session import default_segmenter_path, segment_session
+
+    check_output_folder(args.out, args.overwrite)
+    session = open_session(args.session)
+    model = OnnxSegmenter(args.model or default_segmenter_path(), threads=args.threads)
+    result = segment_session(
+        session,
+        model,
+        args.out,
+        overwrite=args.overwrite,
+        progress=lambda it, total: tqdm(it, total=total, desc="segmenting", unit="frame"),
+    )
+    shares = ", ".join(f"{k} {100 * v:.1f} %" for k, v in result.label_fractions.items())
+    ms = 1e3 * sum(result.timings_s.values()) / max(result.n_frames, 1)
+    print(f"model {model.path} ({model.arch})")
+    print(
+        f"{result.n_frames} frames, a foot in {result.frames_with_foot}; pixels: {shares}; "
+        f"{ms:.1f} ms per frame"
+    )
+    print(f"wrote {result.path} (labels/, keypoints.csv, contact_sheet.png, summary.json)")
+    return 0

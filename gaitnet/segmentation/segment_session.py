@@ -1,0 +1,250 @@
+"""Segment every frame of a recorded session (``gaitnet segment``, thesis sec. 4.1).
+
+Per frame: the gravity direction in the camera frame (the accelerometer averaged over a window
+centred on the frame, :func:`accelerometer_gravity_C`), HHA (:func:`~gaitnet.segmentation.hha.
+hha_encode`), the segmenter (onnxruntime, :class:`~gaitnet.segmentation.onnx_runtime.
+OnnxSegmenter`), and the foot keypoints of sec. 4.1.4 (:func:`~gaitnet.segmentation.
+postprocess.foot_keypoints`). Written into a staging folder that appears at the output path only
+when complete (:func:`gaitnet.io.atomic.staged_folder`):
+
+- ``labels/<t_ns>.png``: 8-bit label map per frame (0 background, 1 foot, 2 leg), the layout of a
+  simulated session's ``groundtruth/labels/`` so ``gaitnet evaluate`` compares them;
+- ``keypoints.csv``: one row per frame, foot and keypoint (:data:`KEYPOINT_COLUMNS`);
+- ``contact_sheet.png``: evenly spaced frames, RGB with the labels laid over it | label map;
+- ``summary.json``: model, frames, feet seen, where the time went.
+
+The accelerometer's average is the gravity direction up to the walking accelerations that do
+not cancel over the window (a few degrees at normal walking with a 1 s window); ``gaitnet
+infer`` gives the filter's gravity instead.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import logging
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from gaitnet.checks import check_int_range, check_positive
+from gaitnet.errors import InputError
+from gaitnet.io.atomic import staged_folder
+from gaitnet.io.contact_sheet import colourise_labels, contact_sheet, write_png
+from gaitnet.io.images import encode_png
+from gaitnet.io.types import ImuSamples, SessionSource
+from gaitnet.segmentation.hha import HhaParams, find_floor, hha_encode
+from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
+from gaitnet.segmentation.postprocess import FootKeypointParams, foot_keypoints
+
+log = logging.getLogger(__name__)
+
+__all__ = [
+    "KEYPOINT_COLUMNS",
+    "SegmentOptions",
+    "SegmentResult",
+    "DEFAULT_SEGMENTER",
+    "accelerometer_gravity_C",
+    "default_segmenter_path",
+    "network_input",
+    "segment_session",
+]
+
+Progress = Callable[[Iterable, int], Iterable]
+
+KEYPOINT_COLUMNS = ("t_ns", "side", "keypoint", "u", "v", "x_m", "y_m", "z_m", "depth_valid")
+"""``keypoints.csv``: frame time, foot side (left / right / unknown), keypoint (top / mid /
+bottom, eq. 4.1), pixel, camera-frame point [m] (empty where the depth is missing) and whether
+it is valid."""
+
+
+@dataclass(frozen=True)
+class SegmentOptions:
+    """Settings of ``gaitnet segment`` that are not the model's or the post-processing's."""
+
+    gravity_window_s: float = 1.0
+    """Accelerometer samples within ± half this window around a frame give its gravity [s]:
+    about one stride, so the walking accelerations mostly cancel."""
+    sheet_frames: int = 12
+    """Frames on the contact sheet, evenly spaced over the session."""
+
+    def __post_init__(self) -> None:
+        check_positive("gravity_window_s", self.gravity_window_s)
+        check_int_range("sheet_frames", self.sheet_frames, 1, 100)
+
+
+@dataclass
+class SegmentResult:
+    """What :func:`segment_session` wrote and measured."""
+
+    path: Path
+    n_frames: int
+    frames_with_foot: int
+    label_fractions: dict[str, float]
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+
+def accelerometer_gravity_C(
+    imu: ImuSamples, T_CfromI: np.ndarray, t_ns: int, window_s: float
+) -> np.ndarray | None:
+    """Unit gravity (pointing down) in the camera frame from the mean specific force within
+    ``window_s`` centred on ``t_ns``; None when the window holds fewer than 5 samples.
+
+    A still accelerometer reads ``-g`` (i.e. up); its mean over a stride is up to the residual
+    walking accelerations. Rotated into the camera frame with ``T_CfromI``.
+    """
+    half = int(window_s * 0.5e9)
+    lo, hi = np.searchsorted(imu.t_ns, [t_ns - half, t_ns + half])
+    if hi - lo < 5:
+        return None
+    mean = imu.accel[lo:hi].mean(axis=0)
+    norm = float(np.linalg.norm(mean))
+    if not np.isfinite(norm) or norm < 1e-6:
+        return None
+    return -(np.asarray(T_CfromI)[:3, :3] @ (mean / norm))
+
+
+def network_input(arch: str, rgb: np.ndarray, hha: np.ndarray) -> np.ndarray:
+    """(1, C, H, W) float32 input of a segmenter ``arch`` from RGB and HHA (H, W, 3) uint8:
+    RGB/255 (``rgb``), HHA/255 (``hha``) or both, RGB first (``fusion``)."""
+    parts = {"rgb": (rgb,), "hha": (hha,), "fusion": (rgb, hha)}[arch]
+    x = np.concatenate(parts, axis=2).astype(np.float32) * np.float32(1.0 / 255.0)
+    return np.ascontiguousarray(x.transpose(2, 0, 1)[None])
+
+
+def _overlay(rgb: np.ndarray, labels: np.ndarray, feet: list) -> np.ndarray:
+    """RGB with the label colours blended over feet and legs, and the keypoints drawn."""
+    out = rgb.copy()
+    mask = labels > 0
+    out[mask] = (0.45 * rgb[mask] + 0.55 * colourise_labels(labels)[mask]).astype(np.uint8)
+    for foot in feet:
+        colour = {"left": (255, 60, 60), "right": (60, 220, 60)}.get(foot.side, (255, 255, 0))
+        for u, v in foot.keypoints_px.values():
+            cv2.circle(out, (round(u), round(v)), 4, colour, -1, cv2.LINE_AA)
+    return out
+
+
+def segment_session(
+    session: SessionSource,
+    segmenter: OnnxSegmenter,
+    out_dir: str | Path,
+    *,
+    overwrite: bool = False,
+    hha_params: HhaParams | None = None,
+    keypoint_params: FootKeypointParams | None = None,
+    options: SegmentOptions | None = None,
+    progress: Progress | None = None,
+) -> SegmentResult:
+    """Segment every frame of ``session`` into ``out_dir`` (module docstring)."""
+    hha_params = hha_params or HhaParams()
+    keypoint_params = keypoint_params or FootKeypointParams()
+    options = options or SegmentOptions()
+    calib = session.calibration
+    K = calib.color.K
+    n = len(session)
+    sheet_at = set(np.linspace(0, n - 1, min(options.sheet_frames, n)).round().astype(int))
+    timings = dict.fromkeys(("hha", "network", "keypoints", "write"), 0.0)
+    counts = np.zeros(3, np.int64)
+    rows: list[dict[str, object]] = []
+    sheet: list[list[np.ndarray]] = []
+    captions: list[str] = []
+    with_foot = 0
+    no_gravity = 0
+    with staged_folder(out_dir, overwrite) as stage:
+        (stage / "labels").mkdir()
+        frames: Iterable = session.frames()
+        if progress is not None:
+            frames = progress(frames, n)
+        for k, frame in enumerate(frames):
+            t0 = time.perf_counter()
+            gravity = accelerometer_gravity_C(
+                session.imu, calib.T_CfromI, frame.t_ns, options.gravity_window_s
+            )
+            no_gravity += gravity is None
+            up = None if gravity is None else -gravity
+            plane = find_floor(frame.depth_m, K, up, hha_params)  # one fit for HHA and the feet
+            hha = hha_encode(frame.depth_m, K, gravity, hha_params, plane=plane)
+            t1 = time.perf_counter()
+            labels = segmenter.predict(network_input(segmenter.arch, frame.rgb, hha))[0]
+            t2 = time.perf_counter()
+            feet = foot_keypoints(
+                labels, frame.depth_m, K, keypoint_params, gravity_C=gravity, plane=plane
+            )
+            t3 = time.perf_counter()
+            (stage / "labels" / f"{frame.t_ns}.png").write_bytes(encode_png(labels))
+            counts += np.bincount(labels.ravel(), minlength=3)[:3]
+            with_foot += bool(feet)
+            for foot in feet:
+                for name, (u, v) in foot.keypoints_px.items():
+                    p = foot.keypoints_C.get(name)
+                    ok = p is not None
+                    rows.append(
+                        {
+                            "t_ns": frame.t_ns,
+                            "side": foot.side,
+                            "keypoint": name,
+                            "u": f"{u:.2f}",
+                            "v": f"{v:.2f}",
+                            "x_m": f"{p[0]:.5f}" if ok else "",
+                            "y_m": f"{p[1]:.5f}" if ok else "",
+                            "z_m": f"{p[2]:.5f}" if ok else "",
+                            "depth_valid": int(ok),
+                        }
+                    )
+            if k in sheet_at:
+                sheet.append([_overlay(frame.rgb, labels, feet), colourise_labels(labels)])
+                captions.append(f"t = {frame.t_ns * 1e-9:.2f} s, {len(feet)} foot blob(s)")
+            t4 = time.perf_counter()
+            for key, dt in zip(timings, (t1 - t0, t2 - t1, t3 - t2, t4 - t3), strict=True):
+                timings[key] += dt
+        if no_gravity:
+            log.warning(
+                "%d of %d frames had fewer than 5 IMU samples within ±%.2f s: HHA found the "
+                "floor without the gravity prior there",
+                no_gravity,
+                n,
+                options.gravity_window_s / 2,
+            )
+        text = io.StringIO()
+        writer = csv.DictWriter(text, fieldnames=KEYPOINT_COLUMNS, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
+        (stage / "keypoints.csv").write_text(text.getvalue())
+        if sheet:
+            write_png(stage / "contact_sheet.png", contact_sheet(sheet, captions, scale=0.5))
+        total = max(int(counts.sum()), 1)
+        fractions = {
+            name: float(c) / total
+            for name, c in zip(("background", "foot", "leg"), counts, strict=True)
+        }
+        summary = {
+            "model": str(segmenter.path),
+            "arch": segmenter.arch,
+            "frames": n,
+            "frames_with_foot": with_foot,
+            "frames_without_gravity": no_gravity,
+            "label_fractions": fractions,
+            "hha": asdict(hha_params),
+            "seconds": timings,
+            "ms_per_frame": {k: 1e3 * v / max(n, 1) for k, v in timings.items()},
+        }
+        (stage / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")
+    return SegmentResult(Path(out_dir), n, with_foot, fractions, timings)
+
+
+DEFAULT_SEGMENTER = "fcn8s_fusion_small.onnx"
+"""File name of the committed small fusion model in the repository's ``models/segmenter/``."""
+
+
+def default_segmenter_path() -> Path:
+    """The committed small fusion model (docs/segmenter.md); an :class:`InputError` naming the
+    path when it is missing (an install without the repository's ``models/``)."""
+    path = Path(__file__).resolve().parents[2] / "models" / "segmenter" / DEFAULT_SEGMENTER
+    if not path.is_file():
+        raise InputError(f"{path}: the default segmenter is missing; give --model X.onnx")
+    return path

@@ -1,0 +1,117 @@
+"""``gaitnet segment`` (gaitnet.segmentation.segment_session): every frame's label map, the foot
+keypoints, the contact sheet and summary; compared with an independent per-frame computation;
+gravity from the accelerometer against the simulator's truth; one-line errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import torch
+
+from gaitnet.cli import main
+from gaitnet.io import open_session
+from gaitnet.io.trajectory import read_tum
+from gaitnet.segmentation.fcn import build_segmenter
+from gaitnet.segmentation.hha import HhaParams, find_floor, hha_encode
+from gaitnet.segmentation.onnx_runtime import OnnxSegmenter, export_segmenter_onnx
+from gaitnet.segmentation.postprocess import foot_keypoints
+from gaitnet.segmentation.segment_session import (
+    KEYPOINT_COLUMNS,
+    accelerometer_gravity_C,
+    network_input,
+)
+
+
+@pytest.fixture(scope="module")
+def tiny_model(tmp_path_factory, tiny_sim_session: Path) -> Path:
+    """A random fusion segmenter for the tiny session's frame size (score layers drawn at
+    random so that every class appears; the published zero init would give background only)."""
+    calib = open_session(tiny_sim_session).calibration
+    torch.manual_seed(0)
+    model = build_segmenter("fusion", width=1 / 16, input_scale=1.0).eval()
+    with torch.no_grad():
+        for name, p in model.named_parameters():
+            if "score" in name:
+                p.normal_(0.0, 0.5)
+    path = tmp_path_factory.mktemp("seg") / "tiny.onnx"
+    export_segmenter_onnx(model, path, height=calib.color.height, width=calib.color.width)
+    return path
+
+
+def test_segment_matches_a_per_frame_computation(
+    tmp_path: Path, tiny_sim_session: Path, tiny_model: Path
+) -> None:
+    out = tmp_path / "seg"
+    status = main(["segment", str(tiny_sim_session), "--out", str(out), "--model", str(tiny_model)])
+    assert status == 0
+    session = open_session(tiny_sim_session)
+    files = sorted(int(p.stem) for p in (out / "labels").glob("*.png"))
+    assert files == sorted(int(t) for t in session.frame_times_ns)
+    model = OnnxSegmenter(tiny_model)
+    K = session.calibration.color.K
+    frame = session.frame(len(session) // 2)
+    gravity = accelerometer_gravity_C(session.imu, session.calibration.T_CfromI, frame.t_ns, 1.0)
+    plane = find_floor(frame.depth_m, K, -gravity, HhaParams())
+    hha = hha_encode(frame.depth_m, K, gravity, HhaParams(), plane=plane)
+    expected = model.predict(network_input("fusion", frame.rgb, hha))[0]
+    written = cv2.imread(str(out / "labels" / f"{frame.t_ns}.png"), cv2.IMREAD_UNCHANGED)
+    np.testing.assert_array_equal(written, expected)
+    with open(out / "keypoints.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert rows and tuple(rows[0]) == KEYPOINT_COLUMNS
+    feet = foot_keypoints(written, frame.depth_m, K, gravity_C=gravity, plane=plane)
+    mine = [r for r in rows if int(r["t_ns"]) == frame.t_ns]
+    assert len(mine) == 3 * len(feet)
+    for foot in feet:
+        for name, (u, v) in foot.keypoints_px.items():
+            row = next(r for r in mine if r["keypoint"] == name and float(r["u"]) == round(u, 2))
+            assert row["side"] == foot.side
+            assert float(row["v"]) == pytest.approx(v, abs=0.01)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["frames"] == len(session)
+    assert summary["arch"] == "fusion"
+    assert sum(summary["label_fractions"].values()) == pytest.approx(1.0)
+    assert (out / "contact_sheet.png").stat().st_size > 0
+    # the evaluation reads these label maps against the session's ground truth
+    assert main(["evaluate", str(out), "--session", str(tiny_sim_session)]) == 0
+
+
+def test_accelerometer_gravity_follows_the_true_attitude(tiny_sim_session: Path) -> None:
+    """Within a few degrees of the true gravity (the walking accelerations over 1 s)."""
+    session = open_session(tiny_sim_session)
+    t, T = read_tum(tiny_sim_session / "groundtruth" / "camera_frames.tum")
+    errors = []
+    for k in range(0, len(t), 5):
+        t_ns = int(round(t[k] * 1e9))
+        g = accelerometer_gravity_C(session.imu, session.calibration.T_CfromI, t_ns, 1.0)
+        true = T[k, :3, :3].T @ np.array([0.0, 0.0, -1.0])
+        errors.append(np.degrees(np.arccos(np.clip(g @ true, -1, 1))))
+    assert np.median(errors) < 5.0
+    far = int(session.imu.t_ns[-1]) + 10**10
+    assert accelerometer_gravity_C(session.imu, session.calibration.T_CfromI, far, 1.0) is None
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--model", "{tmp}/missing.onnx"], "missing.onnx"),
+        (["--threads", "-1"], "threads"),
+        (["--threads", "x"], "expected an integer"),
+    ],
+)
+def test_segment_errors_are_one_line(
+    tmp_path: Path, tiny_sim_session: Path, tiny_model: Path, capsys, extra, message
+) -> None:
+    args = ["segment", str(tiny_sim_session), "--out", str(tmp_path / "o")]
+    args += [a.replace("{tmp}", str(tmp_path)) for a in extra]
+    if "--model" not in extra:
+        args += ["--model", str(tiny_model)]
+    assert main(args) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and message in err
+    assert not (tmp_path / "o").exists()
