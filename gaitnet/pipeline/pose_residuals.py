@@ -247,7 +247,7 @@ def evaluate(
     if not par.fixed_lengths:
         blocks.append((s.l - geo.lengths) / par.sigma_bone_m)
     if par.knee_hinge:
-        blocks.append(a[:, [10, 11, 13, 14]] / par.sigma_hinge_rad)  # knees' y, z
+        blocks.append(a[:, [7, 8, 10, 11]] / par.sigma_hinge_rad)  # knees' y, z
     if par.rom_limits:
         below, above = np.minimum(a - pb.rom_lo, 0.0), np.maximum(a - pb.rom_hi, 0.0)
         blocks.append((below + above) / par.sigma_rom_rad)
@@ -272,7 +272,7 @@ def evaluate(
         J[:, np.arange(row, row + 4), _L0 + np.arange(4)] = 1 / par.sigma_bone_m
         row += 4
     if par.knee_hinge:
-        J[:, np.arange(row, row + 4), _A0 + np.array([10, 11, 13, 14])] = 1 / par.sigma_hinge_rad
+        J[:, np.arange(row, row + 4), _A0 + np.array([7, 8, 10, 11])] = 1 / par.sigma_hinge_rad
         row += 4
     if par.rom_limits:
         outside = ((a < pb.rom_lo) | (a > pb.rom_hi)) / par.sigma_rom_rad
