@@ -13,6 +13,7 @@ from amassfactory import walking_like_clip, write_smplh_poses, write_smplx_stage
 from scipy.spatial.transform import Rotation
 
 from gaitnet.motion.amass import (
+    REST_JOINTS_KEY,
     AmassError,
     DatasetSplit,
     find_amass_files,
@@ -305,3 +306,36 @@ def test_a_clip_linked_into_the_amass_folder_keeps_its_sub_dataset(tmp_path: Pat
     assert via.dataset == "BMLrub"
     # a file outside the root has no sub-dataset
     assert read_amass_npz(store, amass_root=root).dataset == ""
+
+
+def test_rest_joints_travel_from_the_clip_into_the_prepared_file(tmp_path: Path) -> None:
+    rng = np.random.default_rng(3)
+    root = tmp_path / "amass"
+    poses, trans = walking_like_clip(61, 60.0, rng)
+    own = builtin_skeleton(1.62).rest_joints
+    with_rest = write_smplh_poses(root / "Synth/s0/a_walk_poses.npz", poses, trans, 60.0)
+    np.savez(with_rest, **dict(np.load(with_rest)), **{REST_JOINTS_KEY: own})
+    write_smplh_poses(root / "CMU/01/b_walk_poses.npz", poses, trans, 60.0)
+    assert np.array_equal(read_amass_npz(with_rest).rest_joints, own)
+    out = tmp_path / "p.npz"
+    prepare_walking_subset(root, out)
+    data = load_prepared(out)
+    i_own = int(np.flatnonzero(data.clip_name == "Synth/s0/a_walk_poses.npz")[0])
+    np.testing.assert_allclose(data.rest_joints_of(i_own), own, atol=1e-6)
+    assert data.rest_joints_of(1 - i_own) is None
+    np.testing.assert_allclose(data.clip(i_own).rest_joints, own, atol=1e-6)
+    # files of earlier versions (no rest joints) still load; a broken key is named
+    arrays = dict(np.load(out))
+    legacy = {k: v for k, v in arrays.items() if not k.startswith("clip_rest")}
+    legacy.pop("clip_has_rest_joints")
+    np.savez(tmp_path / "legacy.npz", **legacy)
+    assert load_prepared(tmp_path / "legacy.npz").rest_joints_of(i_own) is None
+    np.savez(tmp_path / "half.npz", **{**legacy, "clip_has_rest_joints": np.ones(2, bool)})
+    with pytest.raises(AmassError, match="must come together"):
+        load_prepared(tmp_path / "half.npz")
+    np.savez(tmp_path / "nan.npz", **{**arrays, "clip_rest_joints": np.full((2, 9, 3), np.nan)})
+    with pytest.raises(AmassError, match="clip_rest_joints"):
+        load_prepared(tmp_path / "nan.npz")
+    np.savez(with_rest, **{**dict(np.load(with_rest)), REST_JOINTS_KEY: np.zeros((3, 3))})
+    with pytest.raises(AmassError, match=REST_JOINTS_KEY):
+        read_amass_npz(with_rest)

@@ -140,6 +140,56 @@ def test_global_residual_with_zero_weights_repeats_last_pose() -> None:
     torch.testing.assert_close(y[:, 10:], x[:, -1:].expand(-1, 10, -1), atol=1e-5, rtol=0)
 
 
+def _trained_like(cfg: PredictorConfig, seed: int = 0) -> DCTGCN:
+    """A model with random weights and non-trivial batch-norm statistics, in eval mode."""
+    torch.manual_seed(seed)
+    model = DCTGCN(cfg)
+    model.train()
+    with torch.no_grad():
+        for _ in range(3):
+            model(0.5 * torch.randn(16, 10, 21))
+    return model.eval()
+
+
+def test_last_pose_residual_keeps_a_still_input_exactly_still() -> None:
+    still = torch.randn(6, 1, 21).expand(-1, 10, -1).contiguous()
+    ours = _trained_like(PredictorConfig(hidden=16, n_blocks=2, residual="last_pose"))
+    with torch.no_grad():
+        out = ours(still)
+    assert torch.equal(out, still[:, :1].expand(-1, 20, -1))  # bit for bit
+    # LTD's residual alone does not: the same kind of network invents motion
+    ltd = _trained_like(PredictorConfig(hidden=16, n_blocks=2, residual="ltd"))
+    with torch.no_grad():
+        assert (ltd(still) - still[:, :1]).abs().max() > 1e-2
+    # a moving input moves, and the prediction starts from the last observed pose's side
+    moving = torch.cumsum(0.02 * torch.randn(6, 10, 21), dim=1)
+    with torch.no_grad():
+        assert (ours(moving)[:, 10:] - moving[:, -1:]).abs().max() > 1e-4
+
+
+def test_last_pose_residual_prediction_is_lipschitz_in_the_motion() -> None:
+    """A nearly still input (sway) gives a nearly still prediction: the output moves away
+    from the last pose by an amount proportional to the input's motion."""
+    model = _trained_like(PredictorConfig(hidden=16, n_blocks=2, residual="last_pose"), seed=3)
+    base = torch.randn(4, 1, 21).expand(-1, 10, -1)
+    wiggle = torch.randn(4, 10, 21)
+    with torch.no_grad():
+        dev = [
+            (model(base + eps * wiggle)[:, 10:] - (base + eps * wiggle)[:, -1:]).abs().max()
+            for eps in (1e-3, 1e-4)
+        ]
+    assert 0 < dev[1] < 0.2 * dev[0]  # ten times less motion, about ten times less deviation
+
+
+def test_last_pose_residual_exports_to_onnx_and_stays_still(tmp_path: Path) -> None:
+    model = _trained_like(PredictorConfig(hidden=16, n_blocks=1, residual="last_pose"))
+    path = tmp_path / "still.onnx"
+    assert export_predictor_onnx(model, path).max_abs_diff <= 1e-4
+    still = np.repeat(np.random.default_rng(0).normal(size=(3, 1, 21)), 10, axis=1)
+    got = OnnxPredictor(path, threads=1)(still)
+    assert np.abs(got - still[:, :1].astype(np.float32)).max() <= 1e-6
+
+
 def test_truncated_dct_low_passes_the_padded_input() -> None:
     model = DCTGCN(PredictorConfig(hidden=16, n_blocks=2, dct_n=15))
     _zero_parameters(model)
@@ -202,6 +252,21 @@ def test_joint_positions_match_numpy_forward_kinematics() -> None:
     got = joint_positions(torch.from_numpy(f), skel).numpy()
     np.testing.assert_allclose(got, expected, atol=1e-12)
     np.testing.assert_allclose(joint_positions(f, skel), expected, atol=1e-12)  # numpy path
+
+
+def test_per_window_skeletons_in_the_loss_equal_one_skeleton_per_window() -> None:
+    rng = np.random.default_rng(4)
+    skels = [builtin_skeleton(h) for h in (1.5, 1.7, 1.95)]
+    pred = torch.from_numpy(rng.normal(scale=0.4, size=(3, 20, 21)))
+    target = torch.from_numpy(rng.normal(scale=0.4, size=(3, 20, 21)))
+    batch = torch.from_numpy(np.stack([s.rest_joints for s in skels]))
+    got = motion_loss(pred, target, batch, w_mpjpe=1.0, w_mae=0.0).mpjpe
+    each = [motion_loss(pred[i : i + 1], target[i : i + 1], s).mpjpe for i, s in enumerate(skels)]
+    torch.testing.assert_close(got, torch.stack(each).mean(), rtol=1e-12, atol=0)
+    # taller skeletons weigh the same angle errors as larger position errors
+    assert each[0] < each[2]
+    with pytest.raises(ValueError, match="skeletons for a batch"):
+        motion_loss(pred, target, batch[:2])
 
 
 # --------------------------------------------------------------------------- ONNX

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -18,10 +19,13 @@ from gaitnet.sim.amass_clips import (
     SYNTH_DATASET_SPLIT,
     SyntheticWalksConfig,
     make_synthetic_walks,
+    sample_gait_config,
     walk_to_amass,
     write_amass_poses,
 )
+from gaitnet.sim.amass_mix import CLIP_KINDS, clip_motion
 from gaitnet.sim.gait import GaitConfig, generate_walk
+from gaitnet.sim.gait_plan import WalkVariation
 from gaitnet.sim.subject import sample_subject
 
 ROOT = Path(__file__).parents[1]
@@ -147,3 +151,125 @@ def test_script_smoke(tmp_path: Path) -> None:
         text=True,
     )  # fmt: skip
     assert bad.returncode == 1 and bad.stderr.startswith("error: ") and bad.stderr.count("\n") == 1
+
+
+# --------------------------------------------------------------------------- the clip mix
+
+
+def _subject():
+    return sample_subject(np.random.default_rng(7))
+
+
+def _pelvis_speed(pose, fps: float) -> np.ndarray:
+    return np.linalg.norm(np.diff(pose[1][:, :2], axis=0), axis=1) * fps
+
+
+def test_default_variation_changes_nothing() -> None:
+    cfg = GaitConfig(walk_length_m=4.0, turn_deg=40.0)
+    a = generate_walk(_subject(), cfg, np.random.default_rng(1))
+    b = generate_walk(_subject(), cfg, np.random.default_rng(1), variation=WalkVariation())
+    t = np.linspace(0.0, a.duration_s, 200)
+    assert a.duration_s == pytest.approx(b.duration_s, abs=1e-9)
+    np.testing.assert_allclose(a.joints(t), b.joints(t), atol=1e-9)
+
+
+def test_walk_variation_speed_change_asymmetry_and_sharp_turn() -> None:
+    cfg = GaitConfig(speed_mps=0.8, walk_length_m=10.0, step_length_cv=0.0, step_time_cv=0.0)
+    faster = generate_walk(
+        _subject(), cfg, np.random.default_rng(2), variation=WalkVariation(speed_change=0.8)
+    )
+    hs = faster.steps.hs_s
+    steady = slice(3, len(hs) - 3)
+    speeds = faster.steps.length_m[steady][1:] / np.diff(hs[steady])
+    assert speeds[-1] > 1.5 * speeds[0]  # 0.8 → 1.44 m/s over the walk
+    limp = generate_walk(
+        _subject(), cfg, np.random.default_rng(2),
+        variation=WalkVariation(step_length_asymmetry=0.1),
+    )  # fmt: skip
+    lengths = limp.steps.length_m[steady]
+    sides = np.array(limp.steps.side)[steady]
+    ratio = lengths[sides == "left"].mean() / lengths[sides == "right"].mean()
+    assert ratio == pytest.approx(1.1 / 0.9, rel=0.05)
+    sharp = generate_walk(
+        _subject(), replace(cfg, turn_deg=90.0), np.random.default_rng(2),
+        variation=WalkVariation(turn_arc_m=2.0, turn_at=0.5),
+    )  # fmt: skip
+    s = np.array([0.0, 3.9, 6.1, 10.0])
+    np.testing.assert_allclose(np.degrees(sharp.path.heading(s)), [0, 0, 90, 90], atol=1e-9)
+
+
+def test_each_clip_kind(tmp_path: Path) -> None:
+    cfg = SyntheticWalksConfig(
+        walk_length_range_m=(3.0, 4.0), standing_range_s=(3.0, 3.5), pause_range_s=(2.0, 2.5),
+        asymmetry_range=(0.02, 0.05),
+    )  # fmt: skip
+    subject = _subject()
+    fps = 60.0
+    for kind in CLIP_KINDS:
+        rng = np.random.default_rng(5)
+        motion = clip_motion(
+            rng, subject, cfg, kind, lambda r=rng: sample_gait_config(r, cfg, ((1.0, 1.4),))
+        )
+        pose = motion.sample(fps)
+        speed = _pelvis_speed(pose, fps)
+        np.testing.assert_allclose(motion.skeleton_rest_joints, subject.skeleton().rest_joints)
+        assert abs(pose[0].shape[0] - (motion.duration_s * fps + 1)) <= 2  # (pause: the blend)
+        if kind == "standing":
+            assert 3.0 <= motion.duration_s <= 3.5 and speed.max() < 0.05
+            continue
+        assert speed.max() > 0.8
+        # every frame-to-frame change is smooth: no jump anywhere (the pause's junction too)
+        joints = forward_kinematics(subject.skeleton(), *pose[:1], pose[1], pose[2])
+        assert np.linalg.norm(np.diff(joints, axis=0), axis=-1).max() * fps < 8.0
+        assert np.abs(np.diff(pose[1], axis=0)).max() * fps < 2.5
+        if kind == "pause":  # walk, stand still (at least 1.5 s below 0.05 m/s), walk on
+            moving = speed > 0.3
+            first, last = np.argmax(moving), len(moving) - np.argmax(moving[::-1])
+            still = (speed[first:last] < 0.05).sum() / fps
+            assert still >= motion.pause_s >= 2.0  # plus both walks' settling
+        if kind == "sharp_turn":
+            assert 45.0 <= abs(motion.turn_deg) <= 180.0
+        if kind == "speed_change":
+            assert abs(motion.speed_change) > 0.2
+
+
+def test_mix_config_file_and_default_clip_names(tmp_path: Path) -> None:
+    (tmp_path / "mix.yaml").write_text(
+        "train_subjects: 2\nval_subjects: 0\ntest_subjects: 0\nwalks_per_subject: 2\n"
+        "walk_length_range_m: [3.0, 3.5]\nmix_walk: 0\nmix_standing: 1\n"
+        "standing_range_s: [2.0, 2.5]\nheight_range_m: [1.3, 2.1]\n"
+    )
+    script = ROOT / "data" / "make_synthetic_walks.py"
+    done = subprocess.run(
+        [sys.executable, str(script), "--out", str(tmp_path / "s"), "--config",
+         str(tmp_path / "mix.yaml"), "--n-subjects", "1", "0", "0"],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    clips = json.loads((tmp_path / "s" / "manifest.json").read_text())["clips"]
+    assert len(clips) == 2 and {c["kind"] for c in clips} == {"standing"}  # the CLI overrides
+    assert all(c["path"].endswith("_standing_walk_poses.npz") for c in clips)
+    assert all(2.0 <= c["duration_s"] <= 2.5 for c in clips)
+    default = make_synthetic_walks(
+        tmp_path / "d",
+        SyntheticWalksConfig(train_subjects=1, val_subjects=0, test_subjects=0,
+                             walks_per_subject=1, walk_length_range_m=(3.0, 3.5)),
+    )  # fmt: skip
+    assert [c.kind for c in default.clips] == ["walk"]
+    assert default.clips[0].path.endswith("_00_walk_poses.npz")
+    bad = subprocess.run(
+        [sys.executable, str(script), "--out", "x", "--config", str(tmp_path / "no.yaml")],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert bad.returncode == 1 and bad.stderr.startswith("error: ") and bad.stderr.count("\n") == 1
+    with pytest.raises(ValueError, match="mix_"):
+        SyntheticWalksConfig(mix_walk=0.0)
+
+
+def test_committed_mix_config_loads() -> None:
+    from gaitnet.config import load_config
+
+    cfg = load_config(
+        SyntheticWalksConfig, ROOT / "configs" / "predictor" / "data" / "synthwalk_mix.yaml"
+    )
+    assert sum(v > 0 for v in cfg.mix.values()) == 5 and cfg.asymmetry_range[1] > 0

@@ -181,9 +181,8 @@ def test_loss_decreases_when_overfitting_a_tiny_set(prepared) -> None:
     loader = DataLoader(ds, batch_size=16, shuffle=False, drop_last=True)
     model = DCTGCN(cfg.model)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.optim.lr)
-    skel = torch.tensor(np.array(script.loss_skeleton(cfg.loss).rest_joints), dtype=torch.float32)
     losses = [
-        script.train_one_epoch(model, opt, loader, skel, cfg, e, "cpu", False)["train/loss"]
+        script.train_one_epoch(model, opt, loader, cfg, e, "cpu", False)["train/loss"]
         for e in range(25)
     ]
     assert losses[-1] < 0.5 * losses[0], losses
@@ -381,3 +380,74 @@ def test_metrics_without_tensorboard_and_never_nan(tmp_path: Path, monkeypatch, 
     m.close()
     assert [r["epoch"] for r in read_metrics(tmp_path / "metrics.csv")] == ["0"]
     assert not (tmp_path / "tb").exists()
+
+
+def test_per_clip_skeletons_and_augmented_clips(prepared) -> None:
+    from dataclasses import replace
+
+    from gaitnet.motion.prepared import load_prepared
+    from gaitnet.motion.skeleton import builtin_skeleton
+    from gaitnet.training.predictor import AugmentConfig, LossConfig, augmented, clip_skeletons
+
+    data = load_prepared(prepared)
+    own = builtin_skeleton(1.5).rest_joints
+    rest = np.zeros((data.n_clips, 9, 3), np.float32)
+    rest[0] = own
+    has = np.arange(data.n_clips) == 0
+    data = replace(data, clip_rest_joints=rest, clip_has_rest_joints=has)
+    common = builtin_skeleton(1.75).rest_joints
+    skel = clip_skeletons(data, LossConfig())
+    np.testing.assert_allclose(skel[0], own, atol=1e-6)  # the clip's own skeleton
+    np.testing.assert_allclose(skel[1:], np.broadcast_to(common, skel[1:].shape))
+    flat = clip_skeletons(data, LossConfig(per_clip_skeleton=False, skeleton_height_m=1.6))
+    np.testing.assert_allclose(flat, np.broadcast_to(builtin_skeleton(1.6).rest_joints, flat.shape))
+    n_train = int(np.sum(data.clip_split == "train"))
+    more = augmented(data, AugmentConfig(mirror=True, time_scales=(0.5,)))
+    assert int(np.sum(more.clip_split == "train")) == 4 * n_train  # +mirror, ×0.5 of both
+    assert int(np.sum(more.clip_split != "train")) == int(np.sum(data.clip_split != "train"))
+    assert augmented(data, AugmentConfig()) is data
+
+
+def test_input_noise_reaches_the_input_only(prepared) -> None:
+    from torch.utils.data import DataLoader
+
+    from gaitnet.motion.gcn import DCTGCN
+    from gaitnet.training.predictor import build_windows
+
+    cfg = load_config(
+        PredictorTrainingConfig,
+        None,
+        [f"data.prepared={prepared}", "name=n", "model.hidden=8", "model.n_blocks=1",
+         "augment.input_noise_rad=0.1", "data.split.val=[TinyVal]", "data.split.test=[TinyTest]"],
+    )  # fmt: skip
+    ds = build_windows(cfg, "train", 10)
+    loader = DataLoader(ds, batch_size=8, shuffle=False, drop_last=True)
+    seen: list[torch.Tensor] = []
+
+    class Recorder(DCTGCN):
+        def forward(self, past: torch.Tensor) -> torch.Tensor:
+            seen.append(past.detach().clone())
+            out = torch.cat([past, past[:, -1:].expand(-1, 10, -1)], dim=1)
+            return out + 0.0 * self.gc1.weight.sum()  # zero-residual: the input comes out
+
+    model = Recorder(cfg.model)
+    opt = torch.optim.SGD(model.parameters(), lr=0.0)
+    stats = script.train_one_epoch(model, opt, loader, cfg, 0, "cpu", False)
+    clean = torch.cat([p[:, :10] for p, _ in loader])
+    noise = torch.cat(seen) - clean
+    assert 0.09 < float(noise.std()) < 0.11 and abs(float(noise.mean())) < 0.01
+    # the loss compares with the clean targets: the noisy past frames count as errors
+    assert stats["train/mae_rad"] > 0.05
+
+
+def test_augmented_last_pose_run(tmp_path: Path, prepared) -> None:
+    config = _config(tmp_path, prepared, name="aug")
+    assert _run("--config", str(config), "train.epochs=1", "augment.mirror=true",
+                "augment.time_scales=[0.8]", "model.residual=last_pose") == 0  # fmt: skip
+    log = (tmp_path / "runs" / "aug" / "train.log").read_text()
+    # 3 clips of 120 frames: 34 windows each (stride 3); mirrored: the same; ×0.8 (150
+    # frames): 44 each, for the originals and the mirror images → 3·34 + 3·34 + 6·44
+    assert "windows: 468 train" in log
+    state = torch.load(tmp_path / "runs" / "aug" / "best.pt", weights_only=True)
+    assert state["config"]["model"]["residual"] == "last_pose"
+    assert state["model"]["gc1.weight"].shape[0] == 21  # dct_n + the last pose

@@ -41,7 +41,7 @@ from gaitnet.motion.evaluation import (
     torch_predictor,
 )
 from gaitnet.motion.gcn import DCTGCN, PredictorConfig, joint_positions
-from gaitnet.motion.losses import motion_loss
+from gaitnet.motion.losses import motion_loss, per_window_skeleton
 from gaitnet.motion.prepared import load_prepared
 from gaitnet.training.checkpoint import (
     CheckpointError,
@@ -60,7 +60,9 @@ from gaitnet.training.logs import close_logging, setup_logging
 from gaitnet.training.metrics import MetricsLogger, require_finite
 from gaitnet.training.predictor import (
     PredictorTrainingConfig,
+    augmented,
     build_windows,
+    clip_skeletons,
     loss_skeleton,
     prepared_with_split,
 )
@@ -85,20 +87,25 @@ def train_one_epoch(
     model: torch.nn.Module,
     optimizer: torch.optim.Optimizer,
     loader: DataLoader,
-    skeleton: torch.Tensor,
     cfg: PredictorTrainingConfig,
     epoch: int,
     device: torch.device | str,
     show: bool,
 ) -> dict[str, float]:
-    """One pass over the training windows; loss (4.5)+(4.6) on all T + K output frames."""
+    """One pass over the training windows; loss (4.5)+(4.6) on all T + K output frames, each
+    window's MPJPE on its clip's skeleton; input noise ``augment.input_noise_rad``."""
     model.train()
     n_past = cfg.model.n_past
     sums = torch.zeros(4, dtype=torch.float64, device=device)  # loss, mpjpe, mae, windows
     bar = tqdm(loader, desc=f"epoch {epoch}", leave=False, disable=not show, mininterval=2.0)
-    for i, poses in enumerate(bar):
+    noise = cfg.augment.input_noise_rad
+    for i, (poses, skeleton) in enumerate(bar):
         poses = poses.to(device, non_blocking=True)
-        out = model(poses[:, :n_past])
+        skeleton = skeleton.to(device, non_blocking=True)
+        past = poses[:, :n_past]
+        if noise > 0:  # noise on the observed input only; the targets stay clean
+            past = past + noise * torch.randn_like(past)
+        out = model(past)
         loss = motion_loss(out, poses, skeleton, w_mpjpe=cfg.loss.w_mpjpe, w_mae=cfg.loss.w_mae)
         optimizer.zero_grad(set_to_none=True)
         loss.total.backward()
@@ -128,22 +135,23 @@ def train_one_epoch(
 def evaluate(
     model: torch.nn.Module,
     loader: DataLoader,
-    skeleton: torch.Tensor,
     cfg: PredictorTrainingConfig,
     device: torch.device | str,
 ) -> dict[str, float]:
-    """Validation loss and MPJPE / MAE of the predicted (future) frames, per horizon too."""
+    """Validation loss and MPJPE / MAE of the predicted (future) frames, per horizon too
+    (each window's MPJPE on its clip's skeleton, as the training loss)."""
     model.eval()
     n_past, K = cfg.model.n_past, cfg.model.n_future
     # [loss × windows, windows, MPJPE sum per horizon (K), MAE × windows]
     sums = torch.zeros(3 + K, dtype=torch.float64, device=device)
-    for poses in loader:
-        poses = poses.to(device)
+    for poses, skeleton in loader:
+        poses, skeleton = poses.to(device), skeleton.to(device)
         out = model(poses[:, :n_past])
         loss = motion_loss(out, poses, skeleton, w_mpjpe=cfg.loss.w_mpjpe, w_mae=cfg.loss.w_mae)
         b = poses.shape[0]
         pred, true = out[:, n_past:], poses[:, n_past:]
-        p_pred, p_true = joint_positions(pred, skeleton), joint_positions(true, skeleton)
+        skel = per_window_skeleton(skeleton, pred)
+        p_pred, p_true = joint_positions(pred, skel), joint_positions(true, skel)
         sums[0] += loss.total.double() * b
         sums[1] += b
         sums[2 : 2 + K] += mpjpe_per_horizon(p_pred, p_true, reduction="sum").double()
@@ -265,8 +273,10 @@ def main(args: argparse.Namespace) -> int:
     seed_everything(cfg.train.seed, info.rank)
     loader_gen = torch.Generator().manual_seed(cfg.train.seed + info.rank)
     prepared = prepared_with_split(load_prepared(cfg.data.prepared), cfg.data.split)
-    train_ds = build_windows(cfg, "train", cfg.data.train_stride, prepared)
-    val_ds = build_windows(cfg, "val", cfg.data.eval_stride, prepared)
+    prepared = augmented(prepared, cfg.augment)
+    skeletons = clip_skeletons(prepared, cfg.loss)
+    train_ds = build_windows(cfg, "train", cfg.data.train_stride, prepared, skeletons)
+    val_ds = build_windows(cfg, "val", cfg.data.eval_stride, prepared, skeletons)
     train_sampler = DistributedSampler(
         train_ds, info.world_size, info.rank, shuffle=True, seed=cfg.train.seed, drop_last=True
     )
@@ -285,8 +295,6 @@ def main(args: argparse.Namespace) -> int:
     val_loader = DataLoader(
         val_ds, cfg.train.eval_batch_size, sampler=val_sampler, num_workers=cfg.data.num_workers
     )
-    skeleton_model = loss_skeleton(cfg.loss)
-
     model = DCTGCN(cfg.model).to(device)
     model_without_ddp = model
     optimizer = torch.optim.Adam(
@@ -306,7 +314,6 @@ def main(args: argparse.Namespace) -> int:
     if info.distributed:
         ids = [info.local_rank] if device.type == "cuda" else None
         model = torch.nn.parallel.DistributedDataParallel(model, device_ids=ids)
-    skeleton = torch.tensor(skeleton_model.rest_joints, dtype=torch.float32).to(device)
 
     # Every input is valid: from here on the run folder is written.
     setup_logging(info.rank, run_dir)
@@ -334,10 +341,10 @@ def main(args: argparse.Namespace) -> int:
             train_sampler.set_epoch(epoch)
             lr = optimizer.param_groups[0]["lr"]
             stats = train_one_epoch(
-                model, optimizer, train_loader, skeleton, cfg, epoch, device, info.is_main
+                model, optimizer, train_loader, cfg, epoch, device, info.is_main
             )
             scheduler.step()
-            stats.update(evaluate(model_without_ddp, val_loader, skeleton, cfg, device))
+            stats.update(evaluate(model_without_ddp, val_loader, cfg, device))
             stats.update({"lr": lr, "time/epoch_s": time.perf_counter() - t0})
             require_finite(stats, f"epoch {epoch}")
             is_best = stats["val/mpjpe_m"] < best_metric

@@ -49,6 +49,7 @@ from gaitnet.motion.skeleton import ROTATED_SMPL_INDICES
 __all__ = [
     "DEFAULT_EXCLUDE",
     "DEFAULT_INCLUDE",
+    "REST_JOINTS_KEY",
     "TARGET_FPS",
     "AmassError",
     "DatasetSplit",
@@ -63,6 +64,10 @@ __all__ = [
 ]
 
 TARGET_FPS = 30.0
+#: Optional extra key of a clip file: the subject's own rest joints (9, 3) [m] in SMPL's
+#: canonical frame, order :data:`gaitnet.motion.skeleton.SMPL_JOINT_INDICES` (the synthetic
+#: clips of :mod:`gaitnet.sim.amass_clips` carry it; AMASS files do not).
+REST_JOINTS_KEY = "gaitnet_rest_joints"
 DEFAULT_INCLUDE: tuple[str, ...] = ("walk",)
 DEFAULT_EXCLUDE: tuple[str, ...] = ("backward", "stair")
 _SMPLH_KEYS = ("poses", "trans", "betas", "gender", "mocap_framerate")
@@ -84,7 +89,8 @@ class MotionClip:
 
     ``root_orient`` (T, 3) world-from-pelvis axis-angle, ``joint_aa`` (T, 8, 3) local
     axis-angles of :data:`ROTATED_SMPL_INDICES`, ``trans`` (T, 3) [m], sampled at ``fps``;
-    ``source_fps`` is the rate of the file it came from.
+    ``source_fps`` is the rate of the file it came from; ``rest_joints`` (9, 3) the subject's
+    own skeleton when the file has :data:`REST_JOINTS_KEY` (else None).
     """
 
     name: str
@@ -96,6 +102,7 @@ class MotionClip:
     betas: np.ndarray
     gender: str
     source_fps: float
+    rest_joints: np.ndarray | None = None
 
     @property
     def n_frames(self) -> int:
@@ -215,6 +222,13 @@ def read_amass_npz(path: str | Path, *, amass_root: str | Path | None = None) ->
         if fps_key not in data.files and other in data.files:
             fps_key = other
         fps = _framerate(path, fps_key, _get(data, path, fps_key, flavour))
+        rest = None
+        if REST_JOINTS_KEY in data.files:
+            rest = _finite(path, REST_JOINTS_KEY, _get(data, path, REST_JOINTS_KEY, flavour))
+            if rest.shape != (9, 3):
+                raise AmassError(
+                    f"{path}: key {REST_JOINTS_KEY!r} must have shape (9, 3), got {rest.shape}"
+                )
     if T < 2:
         raise AmassError(f"{path}: needs at least 2 frames, found {T}")
     joints = full.reshape(T, -1, 3)
@@ -229,6 +243,7 @@ def read_amass_npz(path: str | Path, *, amass_root: str | Path | None = None) ->
         betas=betas,
         gender=gender,
         source_fps=fps,
+        rest_joints=rest,
     )
 
 

@@ -28,6 +28,23 @@ net(input coefficients)), and the inverse DCT gives back ``n_past + n_future`` p
 ``dct_n = n_past + n_future`` (the thesis: depth 20 for 10 + 10) the basis is complete and no
 temporal smoothing happens; LTD used 15 for this setting. Both are supported.
 
+Still-input guarantee (``residual = "last_pose"``, the committed model's setting). LTD's
+global residual alone does not keep a still input still: the network adds
+``gc7(blocks(gc1(x)))``, which is not zero for the coefficients of a constant sequence, so a
+standing subject gets invented motion. With ``residual = "last_pose"`` the model works on the
+displacement from the LAST OBSERVED pose ``c``: ``x' = past − c`` (padded with zeros, its last
+observed row is zero), and the graph network sees ``[DCT(x'), c]`` per node (``dct_n + 1``
+features, so the absolute pose still informs the prediction) and returns DCT coefficients of
+the displacement:
+
+    out = c + IDCT( DCT(x') + h(DCT(x'), c) − h(0, c) ).
+
+For a constant input ``x' = 0`` and both ``h`` terms are the same computation, so the output
+is ``c`` in every frame (exactly, up to float32 rounding in the batched matrix products); for
+a nearly still input the prediction moves no more than the net's Lipschitz constant times
+the input's motion. Both ``h`` terms run in one batch of ``2B`` rows (batch norm in training
+sees both). ``residual = "ltd"`` is LTD's original structure (older checkpoints).
+
 Graph convolution (thesis eq. 4.4): ``H⁽ᵖ⁺¹⁾ = σ(A⁽ᵖ⁾ H⁽ᵖ⁾ W⁽ᵖ⁾)`` on a fully connected graph
 whose dense adjacency ``A⁽ᵖ⁾`` (``att``) is learnt per layer.
 """
@@ -59,6 +76,7 @@ __all__ = [
     "NODE_JOINT_NAMES",
     "N_EVAL_JOINTS",
     "PredictorConfig",
+    "RESIDUALS",
     "joint_positions",
     "pose_features",
     "split_pose_features",
@@ -70,6 +88,8 @@ N_EVAL_JOINTS = 7
 #: SMPL joint whose rotation nodes ``3j .. 3j+2`` hold (joint 0: the root orientation).
 NODE_JOINTS: tuple[int, ...] = (0, 1, 2, 4, 5, 7, 8)
 NODE_JOINT_NAMES: tuple[str, ...] = JOINT_NAMES[: len(NODE_JOINTS)]
+#: Residual structures of :class:`DCTGCN` (:attr:`PredictorConfig.residual`).
+RESIDUALS: tuple[str, ...] = ("ltd", "last_pose")
 
 
 @dataclass(frozen=True)
@@ -89,6 +109,9 @@ class PredictorConfig:
     hidden: int = 256
     n_blocks: int = 12
     dropout: float = 0.5
+    #: ``"ltd"`` (LTD's global residual) or ``"last_pose"`` (a still input stays still exactly;
+    #: module docstring)
+    residual: str = "ltd"
 
     #: Largest accepted value of each integer key (far above any useful size; guards against
     #: typos that would ask for terabytes).
@@ -105,6 +128,10 @@ class PredictorConfig:
         dropout = check_range("PredictorConfig.dropout", self.dropout, 0.0, 1.0)
         if dropout == 1.0:
             raise ValueError("PredictorConfig.dropout must be below 1 (1 drops every feature)")
+        if self.residual not in RESIDUALS:
+            raise ValueError(
+                f"PredictorConfig.residual must be one of {list(RESIDUALS)}, got {self.residual!r}"
+            )
 
     @property
     def seq_len(self) -> int:
@@ -191,7 +218,9 @@ class DCTGCN(nn.Module):
         self.register_buffer("dct_m", dct_matrix_torch(n)[:L].contiguous(), persistent=False)
         self.register_buffer("idct_m", idct_matrix_torch(n)[:, :L].contiguous(), persistent=False)
 
-        self.gc1 = GraphConvolution(L, config.hidden, config.n_nodes)
+        self.last_pose = config.residual == "last_pose"
+        # last_pose: each node also sees its value in the last observed pose (one feature more)
+        self.gc1 = GraphConvolution(L + int(self.last_pose), config.hidden, config.n_nodes)
         self.bn1 = nn.BatchNorm1d(config.n_nodes * config.hidden)
         self.gcbs = nn.ModuleList(
             GCBlock(config.hidden, config.dropout, config.n_nodes) for _ in range(config.n_blocks)
@@ -209,16 +238,19 @@ class DCTGCN(nn.Module):
         """Inverse DCT (4.3) of (B, N, dct_n) coefficients → (B, n_past + n_future, N)."""
         return torch.matmul(self.idct_m, coeffs.transpose(1, 2))
 
-    def gcn(self, x: torch.Tensor) -> torch.Tensor:
-        """The graph network with its global residual: ``x + gc7(blocks(gc1(x)))``."""
+    def net(self, x: torch.Tensor) -> torch.Tensor:
+        """The graph network without residual: ``gc7(blocks(gc1(x)))``."""
         b, n, _ = x.shape
         y = self.gc1(x)
         y = self.bn1(y.reshape(b, n * self.config.hidden)).reshape(b, n, self.config.hidden)
         y = self.do(self.act_f(y))
         for block in self.gcbs:
             y = block(y)
-        y = self.gc7(y)
-        return y + x
+        return self.gc7(y)
+
+    def gcn(self, x: torch.Tensor) -> torch.Tensor:
+        """LTD's graph network with its global residual: ``x + gc7(blocks(gc1(x)))``."""
+        return x + self.net(x)
 
     def forward(self, past: torch.Tensor) -> torch.Tensor:
         cfg = self.config
@@ -227,7 +259,17 @@ class DCTGCN(nn.Module):
                 f"DCTGCN expects past poses of shape (batch, {cfg.n_past}, {cfg.n_nodes}), "
                 f"got {tuple(past.shape)}"
             )
-        return self.decode(self.gcn(self.encode(past)))
+        if not self.last_pose:
+            return self.decode(self.gcn(self.encode(past)))
+        last = past[:, -1:]  # (B, 1, N): the last observed pose c
+        coeffs = self.encode(past - last)  # DCT of the displacement x' (B, N, L)
+        c = last.transpose(1, 2)  # (B, N, 1)
+        feats = torch.cat(
+            [torch.cat([coeffs, c], dim=2), torch.cat([torch.zeros_like(coeffs), c], dim=2)]
+        )
+        h = self.net(feats)
+        b = past.shape[0]
+        return self.decode(coeffs + h[:b] - h[b:]) + last
 
     def predict_future(self, past: torch.Tensor) -> torch.Tensor:
         """Only the predicted frames: (B, n_past, N) → (B, n_future, N)."""

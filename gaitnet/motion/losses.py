@@ -25,7 +25,7 @@ from gaitnet.evaluation.metrics import mean_angle_error, mpjpe
 from gaitnet.motion.gcn import joint_positions
 from gaitnet.motion.skeleton import LowerBodySkeleton
 
-__all__ = ["MotionLoss", "motion_loss"]
+__all__ = ["MotionLoss", "motion_loss", "per_window_skeleton"]
 
 
 class MotionLoss(NamedTuple):
@@ -36,6 +36,19 @@ class MotionLoss(NamedTuple):
     mae: torch.Tensor
 
 
+def per_window_skeleton(
+    skeleton: LowerBodySkeleton | torch.Tensor, poses: torch.Tensor
+) -> LowerBodySkeleton | torch.Tensor:
+    """A (B, 9, 3) batch of skeletons shaped to broadcast with (B, W, 21) poses (B, 1, 9, 3)."""
+    if isinstance(skeleton, torch.Tensor) and skeleton.dim() == 3 and poses.dim() == 3:
+        if skeleton.shape[0] != poses.shape[0]:
+            raise ValueError(
+                f"{skeleton.shape[0]} skeletons for a batch of {poses.shape[0]} windows"
+            )
+        return skeleton[:, None]
+    return skeleton
+
+
 def motion_loss(
     pred: torch.Tensor,
     target: torch.Tensor,
@@ -44,9 +57,15 @@ def motion_loss(
     w_mpjpe: float = 1.0,
     w_mae: float = 1.0,
 ) -> MotionLoss:
-    """Weighted sum of (4.5) through forward kinematics and (4.6) on (..., 21) pose vectors."""
+    """Weighted sum of (4.5) through forward kinematics and (4.6) on (..., 21) pose vectors.
+
+    ``skeleton``: one skeleton for every window (a :class:`LowerBodySkeleton` or a (9, 3)
+    rest-joint tensor), or one per window: (B, 9, 3) for (B, W, 21) poses (each clip's own
+    skeleton, :func:`gaitnet.training.predictor.clip_skeletons`).
+    """
     if pred.shape != target.shape:
         raise ValueError(f"motion_loss needs equal shapes, got {pred.shape}, {target.shape}")
+    skeleton = per_window_skeleton(skeleton, pred)
     l_pos = mpjpe(joint_positions(pred, skeleton), joint_positions(target, skeleton))
     l_ang = mean_angle_error(pred, target)
     return MotionLoss(total=w_mpjpe * l_pos + w_mae * l_ang, mpjpe=l_pos, mae=l_ang)

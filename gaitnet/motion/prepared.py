@@ -37,6 +37,7 @@ from gaitnet.motion.skeleton import N_ROTATED
 
 __all__ = [
     "PREPARED_FORMAT_VERSION",
+    "OPTIONAL_KEYS",
     "PREPARED_KEYS",
     "SPLITS",
     "PrepareReport",
@@ -62,6 +63,11 @@ PREPARED_KEYS: dict[str, str] = {
     "root_orient": "(N, 3) float32: world-from-pelvis axis-angle (AMASS world, z up)",
     "joint_aa": "(N, 8, 3) float32: local axis-angle of SMPL joints 1, 2, 4, 5, 7, 8, 10, 11",
     "trans": "(N, 3) float32: SMPL translation [m]",
+}
+#: Optional arrays (files of earlier versions lack them): each clip's own skeleton.
+OPTIONAL_KEYS: dict[str, str] = {
+    "clip_rest_joints": "(C, 9, 3) float32: the clip's rest joints (zeros where unknown)",
+    "clip_has_rest_joints": "(C,) bool: whether the clip file carried its rest joints",
 }
 _STRING_KEYS = ("clip_name", "clip_dataset", "clip_split", "clip_gender")
 _FLOAT_KEYS = ("clip_source_fps", "betas", "root_orient", "joint_aa", "trans")
@@ -158,6 +164,11 @@ def prepare_walking_subset(
         "root_orient": np.concatenate([c.root_orient for c in clips]).astype(np.float32),
         "joint_aa": np.concatenate([c.joint_aa for c in clips]).astype(np.float32),
         "trans": np.concatenate([c.trans for c in clips]).astype(np.float32),
+        "clip_rest_joints": np.array(
+            [np.zeros((9, 3)) if c.rest_joints is None else c.rest_joints for c in clips],
+            dtype=np.float32,
+        ),
+        "clip_has_rest_joints": np.array([c.rest_joints is not None for c in clips]),
     }
     out_file = Path(out_file)
     with atomic_open(out_file, "wb") as handle:
@@ -186,6 +197,8 @@ class PreparedWalking:
     root_orient: np.ndarray
     joint_aa: np.ndarray
     trans: np.ndarray
+    clip_rest_joints: np.ndarray | None = None
+    clip_has_rest_joints: np.ndarray | None = None
 
     @property
     def n_clips(self) -> int:
@@ -204,7 +217,14 @@ class PreparedWalking:
             betas=self.betas[i].astype(np.float64),
             gender=str(self.clip_gender[i]),
             source_fps=float(self.clip_source_fps[i]),
+            rest_joints=self.rest_joints_of(i),
         )
+
+    def rest_joints_of(self, i: int) -> np.ndarray | None:
+        """Clip ``i``'s own rest joints (9, 3) float64, or None when its file had none."""
+        if self.clip_has_rest_joints is None or not bool(self.clip_has_rest_joints[i]):
+            return None
+        return self.clip_rest_joints[i].astype(np.float64)
 
 
 def _scalar(path: Path, key: str, value: np.ndarray, kind: str) -> float:
@@ -230,6 +250,7 @@ def load_prepared(path: str | Path) -> PreparedWalking:
         if missing:
             raise AmassError(f"{path}: missing key(s) {missing}; re-run the AMASS preparation")
         arrays = {key: npz_array(data, path, key, AmassError) for key in PREPARED_KEYS}
+        optional = {k: npz_array(data, path, k, AmassError) for k in OPTIONAL_KEYS if k in data}
     version = _scalar(path, "format_version", arrays.pop("format_version"), "iu")
     if version != PREPARED_FORMAT_VERSION:
         raise AmassError(
@@ -271,4 +292,13 @@ def load_prepared(path: str | Path) -> PreparedWalking:
     if unknown:
         raise AmassError(f"{path}: key 'clip_split' holds {unknown}, expected {list(SPLITS)}")
     arrays["clip_offset"] = offset
+    if optional:
+        rest, has = optional.get("clip_rest_joints"), optional.get("clip_has_rest_joints")
+        if rest is None or has is None:
+            raise AmassError(f"{path}: keys {list(OPTIONAL_KEYS)} must come together")
+        if rest.shape != (C, 9, 3) or rest.dtype.kind not in "f" or not np.all(np.isfinite(rest)):
+            raise AmassError(f"{path}: key 'clip_rest_joints' must be finite (C, 9, 3) numbers")
+        if has.shape != (C,) or has.dtype.kind != "b":
+            raise AmassError(f"{path}: key 'clip_has_rest_joints' must be (C,) booleans")
+        arrays.update(clip_rest_joints=rest, clip_has_rest_joints=has)
     return PreparedWalking(path=path, fps=fps, **arrays)

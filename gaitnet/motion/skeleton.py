@@ -206,8 +206,10 @@ def forward_kinematics_torch(
 ) -> torch.Tensor:
     """Differentiable torch twin of :func:`forward_kinematics`: joints ``(..., 9, 3)``.
 
-    ``skel`` may also be a rest-joint tensor ``(9, 3)`` (e.g. to optimise bone lengths). The
-    output has the dtype/device of ``joint_aa``. torch is imported here, not at module load.
+    ``skel`` may also be a rest-joint tensor ``(9, 3)`` (e.g. to optimise bone lengths) or a
+    batch of them ``(..., 9, 3)`` whose leading axes broadcast with the poses' (one skeleton per
+    clip or window). The output has the dtype/device of ``joint_aa``. torch is imported here,
+    not at module load.
     """
     import torch
 
@@ -219,16 +221,20 @@ def forward_kinematics_torch(
         J = torch.tensor(np.array(skel.rest_joints), dtype=dtype, device=device)
     else:
         J = skel.to(dtype=dtype, device=device)
+        if J.shape[-2:] != (N_JOINTS, 3):
+            raise ValueError(f"rest joints must have shape (..., {N_JOINTS}, 3), got {J.shape}")
     parents = torch.tensor([0, *PARENTS[1:]], device=device)
-    off = J - J[parents]
-    batch = torch.broadcast_shapes(root_orient.shape[:-1], trans.shape[:-1], joint_aa.shape[:-2])
+    off = J - J[..., parents, :]
+    batch = torch.broadcast_shapes(
+        root_orient.shape[:-1], trans.shape[:-1], joint_aa.shape[:-2], J.shape[:-2]
+    )
     R_local = so3_exp_torch(joint_aa)
     G_pair = so3_exp_torch(root_orient)[..., None, :, :].expand(*batch, 2, 3, 3)
-    p0 = (J[0] + trans).expand(*batch, 3)
+    p0 = (J[..., 0, :] + trans).expand(*batch, 3)
     p_pair = p0[..., None, :].expand(*batch, 2, 3)
     out = [p0[..., None, :]]
     for a, b in _LEVELS:
-        p_pair = p_pair + (G_pair @ off[a : b + 1, :, None])[..., 0]
+        p_pair = p_pair + (G_pair @ off[..., a : b + 1, :, None])[..., 0]
         out.append(p_pair)
         G_pair = G_pair @ R_local[..., a - 1 : b, :, :].expand(*batch, 2, 3, 3)
     return torch.cat(out, dim=-2)

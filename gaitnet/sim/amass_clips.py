@@ -60,10 +60,11 @@ import numpy as np
 
 from gaitnet.checks import check_each, check_int_range, check_range
 from gaitnet.io.atomic import atomic_open, atomic_write_text, staged_folder
-from gaitnet.motion.amass import DatasetSplit
+from gaitnet.motion.amass import REST_JOINTS_KEY, DatasetSplit
 from gaitnet.motion.skeleton import ROTATED_SMPL_INDICES
+from gaitnet.sim.amass_mix import CLIP_KINDS, ClipMotion, choose_kind, clip_motion
 from gaitnet.sim.config import HEIGHT_LIMITS_M
-from gaitnet.sim.gait import GaitConfig, Walk, generate_walk
+from gaitnet.sim.gait import GaitConfig, Walk
 from gaitnet.sim.scene_setup import SEED_LIMIT
 from gaitnet.sim.subject import HEIGHT_RANGE_M, Subject, sample_subject
 
@@ -76,6 +77,7 @@ __all__ = [
     "SyntheticWalksConfig",
     "SyntheticWalksReport",
     "make_synthetic_walks",
+    "pose_to_amass",
     "sample_gait_config",
     "walk_to_amass",
     "write_amass_poses",
@@ -83,8 +85,6 @@ __all__ = [
 
 #: SMPL+H G has 52 joints (22 body + 2 × 15 hand): ``poses`` has 156 columns.
 N_SMPLH_JOINTS = 52
-#: Extra key holding the subject's rest joints (9, 3).
-REST_JOINTS_KEY = "gaitnet_rest_joints"
 #: Split → sub-dataset folder.
 SPLIT_DATASETS: dict[str, str] = {
     "train": "SynthWalkTrain",
@@ -127,6 +127,24 @@ class SyntheticWalksConfig:
     step_cv_range: Band = (0.01, 0.05)
     step_width_std_range_m: Band = (0.005, 0.02)
     mocap_rates_hz: tuple[float, ...] = (60.0, 100.0, 120.0)
+    #: Weights of the clip kinds (:mod:`gaitnet.sim.amass_mix`); the default: whole walks only.
+    mix_walk: float = 1.0
+    mix_sharp_turn: float = 0.0
+    mix_speed_change: float = 0.0
+    mix_pause: float = 0.0
+    mix_standing: float = 0.0
+    stand_range_s: Band = (1.0, 1.5)
+    standing_range_s: Band = (6.0, 20.0)
+    sharp_turn_range_deg: Band = (45.0, 180.0)
+    turn_arc_range_m: Band = (1.0, 3.0)
+    min_speed_change_mps: float = 0.3
+    pause_range_s: Band = (1.0, 4.0)
+    asymmetry_range: Band = (0.0, 0.0)
+
+    @property
+    def mix(self) -> dict[str, float]:
+        """Clip kind → weight (the ``mix_*`` keys)."""
+        return {k: float(getattr(self, f"mix_{k}")) for k in CLIP_KINDS}
 
     def __post_init__(self) -> None:
         for name in ("train_subjects", "val_subjects", "test_subjects", "walks_per_subject"):
@@ -159,6 +177,23 @@ class SyntheticWalksConfig:
             if band[0] > band[1]:
                 raise ValueError(f"{name} must be [low, high], got {band}")
         check_each("mocap_rates_hz", self.mocap_rates_hz, 30.0, 1000.0)
+        for kind in CLIP_KINDS:
+            check_range(f"mix_{kind}", getattr(self, f"mix_{kind}"), 0.0, 1e6)
+        if sum(self.mix.values()) <= 0:
+            raise ValueError("the mix_* weights must not all be zero")
+        check_range("min_speed_change_mps", self.min_speed_change_mps, 0.05, 0.5)
+        for name, lo, hi in (
+            ("stand_range_s", 1.0, 60.0),
+            ("standing_range_s", 2.0, 60.0),
+            ("sharp_turn_range_deg", 0.0, 360.0),
+            ("turn_arc_range_m", 0.5, 20.0),
+            ("pause_range_s", 0.5, 60.0),
+            ("asymmetry_range", 0.0, 0.3),
+        ):
+            band = getattr(self, name)
+            check_each(name, band, lo, hi)
+            if band[0] > band[1]:
+                raise ValueError(f"{name} must be [low, high], got {band}")
 
 
 @dataclass(frozen=True)
@@ -167,6 +202,7 @@ class SyntheticClip:
 
     path: str  # relative to the root
     split: str
+    kind: str
     dataset: str
     subject: str
     height_m: float
@@ -176,6 +212,8 @@ class SyntheticClip:
     mocap_framerate: float
     n_frames: int
     duration_s: float
+    speed_change: float = 0.0
+    pause_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -223,8 +261,8 @@ def sample_gait_config(
         "step_length_cv": float(rng.uniform(*cfg.step_cv_range)),
         "step_time_cv": float(rng.uniform(*cfg.step_cv_range)),
         "step_width_std_m": float(rng.uniform(*cfg.step_width_std_range_m)),
-        "stand_start_s": float(rng.uniform(1.0, 1.5)),
-        "stand_end_s": float(rng.uniform(1.0, 1.5)),
+        "stand_start_s": float(rng.uniform(*cfg.stand_range_s)),
+        "stand_end_s": float(rng.uniform(*cfg.stand_range_s)),
         "turn_deg": turn,
         "toe_out_deg": float(rng.uniform(0.0, 10.0)),
         # Style parameters, varied around the simulator's defaults where the generator has them.
@@ -251,8 +289,15 @@ def walk_to_amass(walk: Walk, fps: float) -> dict[str, np.ndarray]:
     if not fps > 0:
         raise ValueError(f"fps must be positive, got {fps}")
     t = np.arange(int(math.floor(walk.duration_s * fps + 1e-9)) + 1) / fps
-    root_orient, trans, joint_aa = walk.smpl_pose(t)
-    T = t.shape[0]
+    return pose_to_amass(walk.smpl_pose(t), walk.skeleton.rest_joints, fps)
+
+
+def pose_to_amass(
+    pose: tuple[np.ndarray, np.ndarray, np.ndarray], rest_joints: np.ndarray, fps: float
+) -> dict[str, np.ndarray]:
+    """The AMASS SMPL+H G arrays of ``(root_orient, trans, joint_aa)`` sampled at ``fps``."""
+    root_orient, trans, joint_aa = pose
+    T = root_orient.shape[0]
     poses = np.zeros((T, N_SMPLH_JOINTS, 3))
     poses[:, 0] = root_orient
     poses[:, list(ROTATED_SMPL_INDICES)] = joint_aa
@@ -263,7 +308,7 @@ def walk_to_amass(walk: Walk, fps: float) -> dict[str, np.ndarray]:
         "dmpls": np.zeros((T, 8)),
         "gender": np.array("neutral"),
         "mocap_framerate": np.array(float(fps)),
-        REST_JOINTS_KEY: np.array(walk.skeleton.rest_joints, dtype=np.float64),
+        REST_JOINTS_KEY: np.array(rest_joints, dtype=np.float64),
     }
 
 
@@ -281,12 +326,14 @@ def _generate(
     cfg: SyntheticWalksConfig,
     bands: tuple[Band, ...],
     what: str,
-) -> tuple[GaitConfig, Walk]:
-    """One walk; a gait draw the generator cannot realise is replaced by a fresh draw."""
+) -> tuple[str, ClipMotion]:
+    """One clip; a draw the generator cannot realise is replaced by a fresh draw (same kind)."""
+    kind = choose_kind(rng, cfg.mix)
     for attempt in range(1, _MAX_ATTEMPTS + 1):
-        gait = sample_gait_config(rng, cfg, bands)
         try:
-            return gait, generate_walk(subject, gait, rng)
+            return kind, clip_motion(
+                rng, subject, cfg, kind, lambda: sample_gait_config(rng, cfg, bands)
+            )
         except (RuntimeError, ValueError) as exc:
             logger.warning("%s: gait draw %d rejected by the generator (%s)", what, attempt, exc)
     raise RuntimeError(f"{what}: the gait generator failed {_MAX_ATTEMPTS} draws in a row")
@@ -337,25 +384,29 @@ def _write_clips(
         subject = sample_subject(rng, cfg.height_range_m)
         bands = cfg.test_speed_bands if split == "test" else cfg.train_speed_bands
         for w in range(cfg.walks_per_subject):
-            gait, walk = _generate(rng, subject, cfg, bands, f"{subject_id} walk {w}")
+            kind, motion = _generate(rng, subject, cfg, bands, f"{subject_id} clip {w}")
             fps = float(rng.choice(np.asarray(cfg.mocap_rates_hz, dtype=np.float64)))
-            arrays = walk_to_amass(walk, fps)
-            rel = f"{dataset}/{subject_id}/{subject_id}_{w:02d}_walk_poses.npz"
+            arrays = pose_to_amass(motion.sample(fps), motion.skeleton_rest_joints, fps)
+            tag = "" if kind == "walk" else f"_{kind}"
+            rel = f"{dataset}/{subject_id}/{subject_id}_{w:02d}{tag}_walk_poses.npz"
             write_amass_poses(root / rel, arrays)
             n_frames = int(arrays["poses"].shape[0])
             clips.append(
                 SyntheticClip(
                     path=rel,
                     split=split,
+                    kind=kind,
                     dataset=dataset,
                     subject=subject_id,
                     height_m=round(subject.height_m, 4),
-                    speed_mps=round(gait.speed_mps, 4),
-                    turn_deg=round(gait.turn_deg, 2),
-                    walk_length_m=round(gait.walk_length_m, 3),
+                    speed_mps=round(motion.speed_mps, 4),
+                    turn_deg=round(motion.turn_deg, 2),
+                    walk_length_m=round(motion.walk_length_m, 3),
                     mocap_framerate=fps,
                     n_frames=n_frames,
                     duration_s=round((n_frames - 1) / fps, 4),
+                    speed_change=round(motion.speed_change, 4),
+                    pause_s=round(motion.pause_s, 3),
                 )
             )
     manifest = {

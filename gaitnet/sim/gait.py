@@ -60,7 +60,7 @@ from gaitnet.sim.gait_pelvis import (
     motion_end_time,
     pelvis_grid,
 )
-from gaitnet.sim.gait_plan import FootStance, StepPlan, WalkPath, plan_steps
+from gaitnet.sim.gait_plan import FootStance, StepPlan, WalkPath, WalkVariation, plan_steps
 from gaitnet.sim.gait_style import REFERENCE_SPEED_MPS, SpeedLaws, sample_sway, speed_laws
 from gaitnet.sim.scene import SIDES, BodyState, LegSegment, ShoeState, Side
 from gaitnet.sim.subject import Subject
@@ -318,11 +318,14 @@ def generate_walk(
     cfg: GaitConfig,
     rng: np.random.Generator,
     sway_rng: np.random.Generator | None = None,
+    variation: WalkVariation | None = None,
 ) -> Walk:
     """Generate one walk (deterministic given the generators' states).
 
     ``rng`` draws the footsteps, ``sway_rng`` the postural sway while standing (None: drawn
-    from ``rng`` after the footsteps).
+    from ``rng`` after the footsteps). ``variation``: speed change within the walk, step
+    asymmetry and a turn within a short arc (:class:`gaitnet.sim.gait_plan.WalkVariation`,
+    used for the motion predictor's training clips; None: none, as the simulator).
     """
     laws = walk_laws(subject, cfg)
     pp = PelvisParams(
@@ -335,8 +338,16 @@ def generate_walk(
     )
     settle = 2.0 * pp.height_hold_s  # the height is held still this long around standing
     t_go = cfg.stand_start_s + settle
-    path = WalkPath(cfg.walk_length_m, cfg.turn_deg * DEG)
-    plan = _plan(path, laws, cfg, rng, t_first_heel_off=t_go + pp.progression_smooth_s)
+    if variation is None:
+        path = WalkPath(cfg.walk_length_m, cfg.turn_deg * DEG)
+    else:
+        path = WalkPath(
+            cfg.walk_length_m,
+            cfg.turn_deg * DEG,
+            turn_arc_m=variation.turn_arc_m,
+            turn_at=variation.turn_at,
+        )
+    plan = _plan(path, laws, cfg, rng, t_go + pp.progression_smooth_s, variation)
     sway = sample_sway(rng if sway_rng is None else sway_rng, cfg.sway_ap_rms_m, cfg.sway_ml_rms_m)
     t_stop = motion_end_time(plan, pp)
     duration = t_stop + settle + cfg.stand_end_s
@@ -356,6 +367,7 @@ def _plan(
     cfg: GaitConfig,
     rng: np.random.Generator,
     t_first_heel_off: float,
+    variation: WalkVariation | None = None,
 ) -> StepPlan:
     first = cfg.first_foot
     first_side = int(rng.integers(2)) if first == "random" else (0 if first == "left" else 1)
@@ -375,4 +387,5 @@ def _plan(
         t_first_heel_off=t_first_heel_off,
         first_side=first_side,
         rng=rng,
+        variation=variation,
     )

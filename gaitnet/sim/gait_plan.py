@@ -21,7 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-__all__ = ["FootStance", "StepPlan", "WalkPath", "plan_steps", "smoothstep7"]
+__all__ = ["FootStance", "StepPlan", "WalkPath", "WalkVariation", "plan_steps", "smoothstep7"]
 
 LEFT, RIGHT = 0, 1
 SIDE_SIGN = (1.0, -1.0)  # left foot is on the +normal (left) side of the path
@@ -36,16 +36,62 @@ def smoothstep7(u: np.ndarray) -> np.ndarray:
     return u**4 * (35.0 + u * (-84.0 + u * (70.0 - 20.0 * u)))
 
 
+@dataclass(frozen=True)
+class WalkVariation:
+    """Within-walk changes beyond the simulator's config (the predictor's training clips).
+
+    The defaults change nothing (and draw nothing from the random generator), so the
+    simulator's sessions are unaffected. ``speed_change``: relative speed change over the walk,
+    step ``k`` of ``n`` walks at ``1 + speed_change · S(k / (n − 1))`` times the configured
+    speed (``S`` :func:`smoothstep7`; its length scales with the square root of that factor,
+    its duration inversely, and all lengths are rescaled so the walk keeps its length).
+    ``step_length_asymmetry`` / ``step_time_asymmetry``: steps of the left foot are
+    ``1 + a`` times, those of the right ``1 − a`` times as long (in metres / seconds): a
+    limp-like asymmetric gait. ``turn_arc_m``: the turn of the path happens within this arc
+    length centred at ``turn_at`` of the walk (None: spread over the whole walk).
+    """
+
+    speed_change: float = 0.0
+    step_length_asymmetry: float = 0.0
+    step_time_asymmetry: float = 0.0
+    turn_arc_m: float | None = None
+    turn_at: float = 0.5
+
+    def __post_init__(self) -> None:
+        if not -0.6 <= self.speed_change <= 1.0:
+            raise ValueError(f"speed_change must be in [-0.6, 1], got {self.speed_change}")
+        for name in ("step_length_asymmetry", "step_time_asymmetry"):
+            if not -0.3 <= getattr(self, name) <= 0.3:
+                raise ValueError(f"{name} must be in [-0.3, 0.3], got {getattr(self, name)}")
+        if self.turn_arc_m is not None and not 0.5 <= self.turn_arc_m <= 100.0:
+            raise ValueError(f"turn_arc_m must be in [0.5, 100] m, got {self.turn_arc_m}")
+        if not 0.0 <= self.turn_at <= 1.0:
+            raise ValueError(f"turn_at must be in [0, 1], got {self.turn_at}")
+
+
 class WalkPath:
     """Planar walking path by arc length ``s``: start at the origin heading +x.
 
-    The heading turns by ``turn_rad`` in total, spread smoothly (C³) over ``s ∈ [0, length]``;
-    outside that range the path is straight.
+    The heading turns by ``turn_rad`` in total, spread smoothly (C³) over ``s ∈ [0, length]``
+    (or, with ``turn_arc_m``, over that arc length centred at ``turn_at · length``, kept
+    within the walk); outside that range the path is straight.
     """
 
-    def __init__(self, length_m: float, turn_rad: float) -> None:
+    def __init__(
+        self,
+        length_m: float,
+        turn_rad: float,
+        *,
+        turn_arc_m: float | None = None,
+        turn_at: float = 0.5,
+    ) -> None:
         self.length_m = float(length_m)
         self.turn_rad = float(turn_rad)
+        self._turn_from, self._turn_arc = 0.0, self.length_m
+        if turn_arc_m is not None:
+            self._turn_arc = min(float(turn_arc_m), self.length_m)
+            start = float(turn_at) * self.length_m - 0.5 * self._turn_arc
+            self._turn_from = min(max(start, 0.0), self.length_m - self._turn_arc)
         s = np.arange(-3.0, self.length_m + 3.0 + 5e-4, 1e-3)
         psi = self.heading(s)
         dx, dy = np.cos(psi), np.sin(psi)
@@ -57,7 +103,8 @@ class WalkPath:
 
     def heading(self, s: np.ndarray) -> np.ndarray:
         """Heading angle [rad] at arc length ``s``."""
-        return self.turn_rad * smoothstep7(np.asarray(s, dtype=np.float64) / self.length_m)
+        u = (np.asarray(s, dtype=np.float64) - self._turn_from) / self._turn_arc
+        return self.turn_rad * smoothstep7(u)
 
     def point(self, s: np.ndarray) -> np.ndarray:
         """Path point ``(..., 2)`` at arc length ``s``."""
@@ -135,13 +182,15 @@ def plan_steps(
     t_first_heel_off: float,
     first_side: int,
     rng: np.random.Generator,
+    variation: WalkVariation | None = None,
 ) -> StepPlan:
     """Footsteps and gait events for a walk of ``path.length_m`` (see the module docstring).
 
     ``step_m`` is the preferred steady step length; it is adjusted so that the nominal steps
     add up to the walk length. The feet stand ``stand_width_m`` apart (sole centres) at the
     start and after the closing step, ``step_width_m`` (± noise) while walking. ``timing`` =
-    (stance, foot-flat, heel-off) cycle fractions.
+    (stance, foot-flat, heel-off) cycle fractions. ``variation`` changes the speed within the
+    walk and makes the steps asymmetric (:class:`WalkVariation`; no extra random draws).
     """
     tm = _Timing(*timing)
     factors, step = _step_factors(path.length_m, step_m)
@@ -151,9 +200,11 @@ def plan_steps(
     period = step / speed_mps
     durations = period * (1.0 + step_time_cv * np.clip(rng.normal(size=n), -3, 3))
     widths = np.maximum(step_width_m + step_width_std_m * np.clip(rng.normal(size=n), -3, 3), 0.0)
+    sides = (first_side + np.arange(n)) % 2
+    if variation is not None:
+        lengths, durations = _vary(lengths, durations, sides, variation)
     widths[-1] = max(2.0 * stand_width_m - widths[-2], 0.0)  # closing: feet stand_width apart
     arc = np.concatenate([[0.0], np.cumsum(lengths)])
-    sides = (first_side + np.arange(n)) % 2
     lead = 1.0 - 2.0 * tm.heel_off
     h = t_first_heel_off + lead * durations[0] + np.concatenate([[0.0], np.cumsum(durations)])
     stances = _build_stances(path, arc, sides, h, durations, widths, stand_width_m, toe_out_rad, tm)
@@ -168,6 +219,19 @@ def plan_steps(
         t_first_move=t_first_heel_off,
         t_last_ff=float(h[-1] + 2.0 * tm.foot_flat * durations[-1]),
     )
+
+
+def _vary(
+    lengths: np.ndarray, durations: np.ndarray, sides: np.ndarray, v: WalkVariation
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per-step speed factor and left/right asymmetry (:class:`WalkVariation`)."""
+    n = len(lengths)
+    m = 1.0 + v.speed_change * smoothstep7(np.arange(n) / max(n - 1, 1))
+    sign = np.where(sides == LEFT, 1.0, -1.0)
+    new_lengths = lengths * np.sqrt(m) * (1.0 + sign * v.step_length_asymmetry)
+    new_lengths *= lengths.sum() / new_lengths.sum()  # the walk keeps its length
+    new_durations = durations / np.sqrt(m) * (1.0 + sign * v.step_time_asymmetry)
+    return new_lengths, new_durations
 
 
 def _placement(path: WalkPath, s: float, side: int, width: float, toe_out: float) -> tuple:

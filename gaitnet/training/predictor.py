@@ -13,11 +13,18 @@ clip's split is recomputed from its sub-dataset, otherwise the split stored in t
 used. Windows are heading-normalised (:class:`~gaitnet.motion.windows.WalkingWindows`) and, with
 ``data.preload``, materialised once as one float32 tensor.
 
-Skeleton: the MPJPE term (eq. 4.5) and the evaluation use ONE skeleton for every clip (as
-LTD/HisRepItself use SMPL's mean shape on AMASS): the body model's mean shape when
-``loss.body_model`` names an SMPL-family file, else the built-in anthropometric skeleton of
-``loss.skeleton_height_m``. The net predicts rotations, so the skeleton only sets how angle
-errors weigh as position errors.
+Skeleton: with ``loss.per_clip_skeleton`` (default) the MPJPE term (eq. 4.5) of training and
+validation uses each clip's own skeleton (:func:`clip_skeletons`): the rest joints stored in
+the clip (the synthetic clips carry them), else the body model's skeleton of the clip's betas
+when ``loss.body_model`` names an SMPL-family file, else the built-in skeleton of
+``loss.skeleton_height_m``. The final per-horizon evaluation (``eval.json``) uses ONE skeleton
+for every clip (:func:`loss_skeleton`: the body model's mean shape or the built-in one), as
+LTD/HisRepItself use SMPL's mean shape on AMASS, so that numbers stay comparable between data
+sets and with the baselines.
+
+Augmentation (``augment.*``, training split only): mirror images and time-scaled copies of
+the training clips (:mod:`gaitnet.motion.augment`), and Gaussian noise on the observed input
+poses (``train/predictor.py``).
 """
 
 from __future__ import annotations
@@ -34,12 +41,14 @@ from torch.utils.data import Dataset
 
 from gaitnet.checks import check_int_range, check_range
 from gaitnet.motion.amass import DatasetSplit
+from gaitnet.motion.augment import augment_split
 from gaitnet.motion.gcn import NODE_JOINTS, PredictorConfig
 from gaitnet.motion.prepared import PreparedWalking, load_prepared
 from gaitnet.motion.skeleton import LowerBodySkeleton, builtin_skeleton
 from gaitnet.motion.windows import WalkingWindows
 
 __all__ = [
+    "AugmentConfig",
     "DataConfig",
     "EvalConfig",
     "LossConfig",
@@ -47,7 +56,9 @@ __all__ = [
     "PoseWindows",
     "PredictorTrainingConfig",
     "TrainConfig",
+    "augmented",
     "build_windows",
+    "clip_skeletons",
     "loss_skeleton",
     "prepared_with_split",
 ]
@@ -88,6 +99,7 @@ class LossConfig:
     skeleton_height_m: float = 1.75
     body_model: Path | None = None
     body_model_gender: str = "neutral"
+    per_clip_skeleton: bool = True
 
     def __post_init__(self) -> None:
         check_range("loss.w_mpjpe", self.w_mpjpe, 0.0, 1e6)
@@ -100,6 +112,24 @@ class LossConfig:
                 "loss.body_model_gender must be 'neutral', 'male' or 'female', "
                 f"got {self.body_model_gender!r}"
             )
+
+
+@dataclass(frozen=True)
+class AugmentConfig:
+    """Training-split augmentation (:mod:`gaitnet.motion.augment`): mirror images, copies played
+    at each factor of ``time_scales``, Gaussian noise of ``input_noise_rad`` (per component) on
+    the observed input poses."""
+
+    mirror: bool = False
+    time_scales: tuple[float, ...] = ()
+    input_noise_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        for f in self.time_scales:
+            check_range("augment.time_scales", f, 0.25, 4.0)
+        if len(self.time_scales) > 16:
+            raise ValueError("augment.time_scales: at most 16 factors")
+        check_range("augment.input_noise_rad", self.input_noise_rad, 0.0, 0.5)
 
 
 @dataclass(frozen=True)
@@ -170,6 +200,7 @@ class PredictorTrainingConfig:
     data: DataConfig = field(default_factory=DataConfig)
     model: PredictorConfig = field(default_factory=PredictorConfig)
     loss: LossConfig = field(default_factory=LossConfig)
+    augment: AugmentConfig = field(default_factory=AugmentConfig)
     optim: OptimConfig = field(default_factory=OptimConfig)
     train: TrainConfig = field(default_factory=TrainConfig)
     eval: EvalConfig = field(default_factory=EvalConfig)
@@ -203,27 +234,40 @@ def prepared_with_split(prepared: PreparedWalking, split: DatasetSplit | None) -
 
 
 class PoseWindows(Dataset):
-    """Pose windows (W, 21) float32 tensors; preloaded into one tensor or served lazily."""
+    """Pose windows (W, 21) float32 tensors; preloaded into one tensor or served lazily.
 
-    def __init__(self, windows: WalkingWindows, preload: bool) -> None:
+    With ``skeletons`` (C, 9, 3) (one per clip, :func:`clip_skeletons`) item ``i`` is the pair
+    ``(poses, rest_joints)`` of window ``i`` and its clip's skeleton; without, the poses only.
+    """
+
+    def __init__(
+        self, windows: WalkingWindows, preload: bool, skeletons: np.ndarray | None = None
+    ) -> None:
         self.windows = windows
         self.poses: torch.Tensor | None = None
+        self.skeletons = None
+        if skeletons is not None:
+            self.skeletons = torch.as_tensor(np.asarray(skeletons), dtype=torch.float32)
+            self.clip_of = torch.as_tensor(windows.index[:, 0])
         if preload:
             self.poses = torch.stack([windows[i]["poses"] for i in range(len(windows))])
 
     def __len__(self) -> int:
         return len(self.windows)
 
-    def __getitem__(self, i: int) -> torch.Tensor:
-        if self.poses is not None:
-            return self.poses[i]
-        return self.windows[i]["poses"]
+    def __getitem__(self, i: int) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
+        poses = self.poses[i] if self.poses is not None else self.windows[i]["poses"]
+        if self.skeletons is None:
+            return poses
+        return poses, self.skeletons[self.clip_of[i]]
 
     def as_array(self) -> np.ndarray:
         """All windows (N, W, 21) as a float64 array (for :mod:`gaitnet.motion.evaluation`)."""
         if self.poses is not None:
             return self.poses.numpy().astype(np.float64)
-        return np.stack([self[i].numpy() for i in range(len(self))]).astype(np.float64)
+        return np.stack([self.windows[i]["poses"].numpy() for i in range(len(self))]).astype(
+            np.float64
+        )
 
 
 def build_windows(
@@ -231,10 +275,15 @@ def build_windows(
     split: SplitName,
     stride: int,
     prepared: PreparedWalking | None = None,
+    skeletons: np.ndarray | None = None,
 ) -> PoseWindows:
-    """Windows of ``n_past + n_future`` frames of ``split`` from the configured prepared file."""
+    """Windows of ``n_past + n_future`` frames of ``split`` from the configured prepared file;
+    items are (poses, clip skeleton) pairs (:class:`PoseWindows`), ``skeletons`` (C, 9, 3)
+    defaulting to :func:`clip_skeletons`."""
     if prepared is None:
         prepared = prepared_with_split(load_prepared(cfg.data.prepared), cfg.data.split)
+    if skeletons is None:
+        skeletons = clip_skeletons(prepared, cfg.loss)
     windows = WalkingWindows(
         prepared,
         split,
@@ -250,7 +299,7 @@ def build_windows(
         int(np.sum(prepared.clip_split == split)),
         stride,
     )
-    return PoseWindows(windows, cfg.data.preload)
+    return PoseWindows(windows, cfg.data.preload, skeletons)
 
 
 def loss_skeleton(cfg: LossConfig) -> LowerBodySkeleton:
@@ -260,3 +309,41 @@ def loss_skeleton(cfg: LossConfig) -> LowerBodySkeleton:
 
         return lower_body_skeleton(cfg.body_model, cfg.body_model_gender)
     return builtin_skeleton(cfg.skeleton_height_m)
+
+
+def clip_skeletons(prepared: PreparedWalking, cfg: LossConfig) -> np.ndarray:
+    """Rest joints (C, 9, 3) of each clip's skeleton for the MPJPE loss (module docstring).
+
+    Without ``per_clip_skeleton`` every row is :func:`loss_skeleton`.
+    """
+    common = loss_skeleton(cfg).rest_joints
+    out = np.repeat(common[None], prepared.n_clips, axis=0)
+    if not cfg.per_clip_skeleton:
+        return out
+    model = None
+    if cfg.body_model is not None:
+        from gaitnet.motion.body_model import load_shape_model
+
+        model = load_shape_model(cfg.body_model, cfg.body_model_gender)
+    for i in range(prepared.n_clips):
+        own = prepared.rest_joints_of(i)
+        if own is not None:
+            out[i] = own
+        elif model is not None:
+            out[i] = model.skeleton(prepared.betas[i]).rest_joints
+    return out
+
+
+def augmented(prepared: PreparedWalking, cfg: AugmentConfig) -> PreparedWalking:
+    """``prepared`` with the mirrored / time-scaled copies of its training clips appended."""
+    if not cfg.mirror and not cfg.time_scales:
+        return prepared
+    out = augment_split(prepared, "train", mirror=cfg.mirror, time_scales=cfg.time_scales)
+    logger.info(
+        "augmentation: %d training clips → %d (mirror %s, time scales %s)",
+        int(np.sum(prepared.clip_split == "train")),
+        int(np.sum(out.clip_split == "train")),
+        cfg.mirror,
+        list(cfg.time_scales),
+    )
+    return out
