@@ -313,6 +313,12 @@ def labelme_sides(json_path: Path, height: int, width: int) -> np.ndarray:
 # ------------------------------------------------------------------------------ the set
 
 
+def _chw(image: np.ndarray) -> torch.Tensor:
+    """(H, W, 3) uint8 (÷ 255) or float32 in [0, 1] → float32 (3, H, W) tensor."""
+    t = torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))
+    return t.float().div_(255.0) if image.dtype == np.uint8 else t.float()
+
+
 class SegmentationFolder(torch.utils.data.Dataset):
     """Frames of one folder (module docstring) as tensors for the segmenter.
 
@@ -476,7 +482,10 @@ class SegmentationFolder(torch.utils.data.Dataset):
         info = PngInfo()
         info.add_text(HHA_TEXT_KEY, key)
         try:
-            atomic_save(path, lambda tmp: Image.fromarray(hha).save(tmp, "PNG", pnginfo=info))
+            atomic_save(
+                path,
+                lambda tmp: Image.fromarray(hha).save(tmp, "PNG", pnginfo=info, compress_level=1),
+            )
         except OSError as exc:
             if not self._cache_warned:
                 log.warning("%s: cannot write the HHA cache (%s); not caching", path, exc)
@@ -499,13 +508,9 @@ class SegmentationFolder(torch.utils.data.Dataset):
             else:
                 rng = np.random.default_rng([self.seed, self.epoch, k])
             s = augment_sample(s, self.augment, rng)
-        rgb = s.rgb.astype(np.float32)
-        if s.rgb.dtype == np.uint8:
-            rgb *= np.float32(1.0 / 255.0)
-        hha = s.hha.astype(np.float32) * np.float32(1.0 / 255.0)
         return {
-            "rgb": torch.from_numpy(np.ascontiguousarray(rgb.transpose(2, 0, 1))),
-            "hha": torch.from_numpy(np.ascontiguousarray(hha.transpose(2, 0, 1))),
+            "rgb": _chw(s.rgb),
+            "hha": _chw(s.hha),
             "label": torch.from_numpy(s.label.astype(np.int64)),
             "side": torch.from_numpy(s.side.astype(np.int64)),
             "id": frame_id,
