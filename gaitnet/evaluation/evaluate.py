@@ -19,7 +19,9 @@ inputs allow, in SI units:
   ``groundtruth/labels/`` or a labelled set's ``labels/`` or labelme JSON
   (:mod:`gaitnet.evaluation.label_maps`); ``SESSION`` may then be a labelled set.
 
-More keys (foot trajectories) join as the stages producing them land.
+- ``foot_nmate_m`` {left, right}, ``foot_nmate_filled_m`` {left, right} (the frames filled by
+  prediction) and ``foot_rmse_m`` from ``RESULT_DIR/feet.csv`` against ``groundtruth/feet.csv``
+  after a per-foot yaw + translation alignment (:mod:`gaitnet.evaluation.feet`).
 
 Every input is checked where it is read: a result folder that is missing or a file, a
 ``joints.npz`` that is not a readable archive of the right keys, dtypes and shapes, NaN or inf
@@ -39,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from gaitnet.errors import GaitnetError, InputError, SessionError
+from gaitnet.evaluation.feet import FEET_FILE, foot_metrics
 from gaitnet.evaluation.label_maps import LABELS_DIR, evaluate_label_maps
 from gaitnet.evaluation.metrics import ate_yaw_aligned, match_times, mpjpe
 from gaitnet.evaluation.strides import read_strides, stride_metrics
@@ -138,7 +141,7 @@ def evaluate_result(result_dir: str | Path, session_dir: str | Path) -> ResultEv
         metrics.update(found)
         counts.update(n)
     needs_gt = not labels.is_dir() or any(
-        (result_dir / f).exists() for f in (JOINTS_FILE, TRAJECTORY_FILE, STRIDES_FILE)
+        (result_dir / f).exists() for f in (JOINTS_FILE, TRAJECTORY_FILE, STRIDES_FILE, FEET_FILE)
     )
     if needs_gt and not gt.is_dir():
         raise SessionError(f"{gt}: no ground truth (only simulated sessions have it)")
@@ -171,10 +174,15 @@ def evaluate_result(result_dir: str | Path, session_dir: str | Path) -> ResultEv
         )
         metrics.update(found)  # type: ignore[arg-type]
         counts.update(unmatched)
+    feet = result_dir / FEET_FILE
+    if feet.exists():
+        found_feet, n_feet = foot_metrics(feet, gt / FEET_FILE)
+        metrics.update(found_feet)  # type: ignore[arg-type]
+        counts.update(n_feet)
     if not metrics:
         raise InputError(
             f"{result_dir}: nothing to evaluate (expected {JOINTS_FILE}, {TRAJECTORY_FILE}, "
-            f"{STRIDES_FILE} and/or {LABELS_DIR}/)"
+            f"{STRIDES_FILE}, {FEET_FILE} and/or {LABELS_DIR}/)"
         )
     return ResultEvaluation(metrics, counts)
 
