@@ -143,7 +143,7 @@ def _crop(s: Sample, h: int, w: int, rng: np.random.Generator) -> Sample:
 def _jitter(rgb: np.ndarray, p: AugmentParams, rng: np.random.Generator) -> np.ndarray:
     x = rgb.astype(np.float32)
     if rgb.dtype == np.uint8:
-        x *= np.float32(1.0 / 255.0)
+        x /= np.float32(255.0)  # as the data set's uint8 → float conversion
     b, c, s = (float(rng.uniform(1 - v, 1 + v)) for v in (p.brightness, p.contrast, p.saturation))
     if b != 1.0:
         x *= np.float32(b)
