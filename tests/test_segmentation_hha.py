@@ -197,3 +197,41 @@ def test_bad_inputs_and_params() -> None:
         HhaParams(min_depth_m=2.0, max_depth_m=1.0)
     assert HhaParams().fingerprint() != HhaParams(max_depth_m=4.0).fingerprint()
     assert HhaParams().fingerprint() == HhaParams().fingerprint()
+
+
+def test_every_setting_acts() -> None:
+    depth, R, _, face = scene(60.0)
+    g = gravity_C(R)
+    noisy = depth * (1 + np.random.default_rng(1).normal(0, 0.004, depth.shape)).astype(np.float32)
+    base = hha_encode(noisy, K, g)
+
+    def changed(**kw) -> np.ndarray:
+        return hha_encode(noisy, K, g, HhaParams(**kw)) != base
+
+    assert changed(min_depth_m=0.5)[..., 0].any() and changed(max_depth_m=5.0)[..., 0].any()
+    assert changed(min_height_m=-0.2)[..., 1].any() and changed(max_height_m=2.0)[..., 1].any()
+    floor = interior(face == 0, 12)
+
+    def floor_angle_spread(**kw) -> float:
+        _, _, angle = hha_decode(hha_encode(noisy, K, g, HhaParams(**kw)))
+        return float(np.nanstd(angle[floor]))
+
+    # wider windows and baselines average the depth noise away
+    assert floor_angle_spread(normal_window_px=15) < floor_angle_spread(normal_window_px=3)
+    assert floor_angle_spread(normal_step_px=5) < floor_angle_spread(normal_step_px=1)
+    # differences across the box's silhouette are kept with a loose jump limit
+    assert changed(max_depth_jump=1.0)[..., 2][face == 1].any()
+    # the floor fit's settings reach the fit (an impossible inlier count: no floor found)
+    from gaitnet.geometry.floor_plane import FloorParams
+
+    assert changed(floor=FloorParams(min_inliers=10**6))[..., 1].any()
+    # without gravity: the prior's pitch and cone decide whether a level camera finds its floor
+    level, _, _, _ = scene(pitch_deg=5.0, box=False)
+    assert not hha_encode(level, K, None)[..., 1].any()
+    assert hha_encode(level, K, None, HhaParams(no_imu_pitch_deg=10.0))[..., 1].any()
+    assert hha_encode(level, K, None, HhaParams(no_imu_max_angle_deg=80.0))[..., 1].any()
+    # the lowest-point percentile (gravity but no floor)
+    wall = np.where(face == 1, depth, 0.0).astype(np.float32)
+    a = hha_encode(wall, K, g, HhaParams(lowest_point_percentile=0.0))
+    b = hha_encode(wall, K, g, HhaParams(lowest_point_percentile=20.0))
+    assert (a[..., 1] != b[..., 1]).any()

@@ -197,3 +197,69 @@ def test_no_foot_bad_inputs_and_params() -> None:
         FootKeypointParams(keypoint_axis="x")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="margin_top_px"):
         FootKeypointParams(margin_top_px=0)
+
+
+def test_every_setting_acts() -> None:
+    labels = np.zeros((H, W), np.uint8)
+    foot = rect(labels, 40, 55, 60, 89)  # 480 px
+    depth = np.full((H, W), 0.8, np.float32)
+    depth[60:63, 40:56] = 1.0  # 48 px 0.2 m behind
+    base = dict(use_floor=False)
+
+    def run(**kw):
+        return foot_keypoints(labels, depth, K, FootKeypointParams(**{**base, **kw}))
+
+    assert run()[0].area_px == 480 - 48  # outliers beyond 0.15 m removed
+    assert run(max_depth_dev_m=0.3)[0].area_px == 480
+    assert run(min_area_fraction=480 / (H * W) + 1e-4) == []
+    depth[foot] = np.where(np.arange(foot.sum()) % 5 < 3, 0.8, 1.6)  # two surfaces, 60 / 40 %
+    assert len(run()) == 1 and run(min_consistent_fraction=0.7) == []
+    depth[:] = 0.8
+    depth[60:68, :] = 0.0  # 3 valid depths within ±3 px of the top keypoint (47.5, 63.5)
+    depth[66, 46:49] = 0.8
+    assert run()[0].keypoints_C["top"] is None
+    assert run(depth_radius_px=6)[0].keypoints_C["top"] is not None
+    assert run(min_depth_pixels=3)[0].keypoints_C["top"] is not None
+    # heights: a 5 cm box passes, a 3 cm threshold above it is the floor's
+    fdepth, g = floor_depth()
+    flab = np.zeros((H, W), np.uint8)
+    foot_box(flab, fdepth, g, 40, 55, 60, 89)
+    assert len(foot_keypoints(flab, fdepth, K, gravity_C=g)) == 1
+    assert (
+        foot_keypoints(flab, fdepth, K, FootKeypointParams(min_foot_height_m=0.06), gravity_C=g)
+        == []
+    )
+    assert (
+        foot_keypoints(flab, fdepth, K, FootKeypointParams(max_foot_height_m=0.04), gravity_C=g)
+        == []
+    )
+    # the floor fit's settings reach the fit: no floor → no height filter on a floor ring
+    ring = np.zeros((H, W), np.uint8)
+    rect(ring, 36, 59, 56, 93)
+    ring_depth = fdepth.copy()
+    raise_to(ring_depth, flab == 1, g, 0.05)
+    from gaitnet.geometry.floor_plane import FloorParams
+    from gaitnet.segmentation.hha import HhaParams
+
+    no_fit = FootKeypointParams(floor=HhaParams(floor=FloorParams(min_inliers=10**6)))
+    area = foot_keypoints(ring, ring_depth, K, gravity_C=g)[0].area_px
+    assert foot_keypoints(ring, ring_depth, K, no_fit, gravity_C=g)[0].area_px > area
+    # two feet 4 cm apart laterally: ordered by default, one by one with min_separation_m
+    two = np.zeros((H, W), np.uint8)
+    tdepth, g = floor_depth()
+    foot_box(two, tdepth, g, 60, 70, 60, 85)
+    foot_box(two, tdepth, g, 74, 84, 60, 85)
+    assert sorted(f.side for f in foot_keypoints(two, tdepth, K, gravity_C=g)) == ["left", "right"]
+    apart = FootKeypointParams(min_separation_m=1.0)
+    assert [f.side for f in foot_keypoints(two, tdepth, K, apart, gravity_C=g)] == ["left"] * 2
+    # the leg rule: a leg 2 px from the foot is attached only with attach_px ≥ 2, and small
+    # legs do not count
+    leg_rule = FootKeypointParams(min_lateral_m=0.5)
+    one = np.zeros((H, W), np.uint8)
+    rect(one, 20, 90, 88, 119, value=2)
+    foot_box(one, tdepth, g, 80, 90, 60, 85)
+    assert foot_keypoints(one, tdepth, K, leg_rule, gravity_C=g)[0].side == "left"
+    near = FootKeypointParams(min_lateral_m=0.5, attach_px=1)
+    assert foot_keypoints(one, tdepth, K, near, gravity_C=g)[0].side == "unknown"
+    small = FootKeypointParams(min_lateral_m=0.5, min_leg_area_fraction=0.2)
+    assert foot_keypoints(one, tdepth, K, small, gravity_C=g)[0].side == "unknown"
