@@ -440,3 +440,13 @@ def test_make_segmentation_splits_script(tmp_path: Path, capsys) -> None:
     assert script.main([str(tmp_path), "--check"]) == 1
     assert "depth/a.png: depth image not found" in capsys.readouterr().err
     assert script.main([str(tmp_path / "nothing")]) == 1
+
+
+@pytest.mark.parametrize("key", ["brightness", "contrast", "saturation"])
+def test_each_colour_jitter_acts_alone(key: str) -> None:
+    s = pattern_sample(4)
+    off = dict(hflip_prob=0, scale_min=1, scale_max=1, brightness=0, contrast=0, saturation=0)
+    plain = augment_sample(s, AugmentParams(**off), np.random.default_rng(0))
+    one = augment_sample(s, AugmentParams(**{**off, key: 0.5}), np.random.default_rng(0))
+    assert np.allclose(plain.rgb * 255, s.rgb, atol=1e-3)
+    assert not np.allclose(plain.rgb, one.rgb, atol=1e-3)
