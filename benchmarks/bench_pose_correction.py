@@ -5,7 +5,7 @@ On a simulated session's ground truth (``groundtruth/joints.npz``, ``feet.csv``,
 
 1. estimates the camera-to-pelvis extrinsic from the standing frames before the first toe off
    (noisy camera poses and foot points, the rest pose as the standing pose) and compares it
-   with the simulator's nominal mount;
+   with the simulator's true mount at the first frame;
 2. builds per-frame priors (the true pose with the errors a predictor makes, drawn: Gaussian
    axis-angle errors per joint, a root orientation and a root position error) and measurements
    (the pelvis through the estimated extrinsic from noisy camera poses; the shoe-top marker of
@@ -20,7 +20,7 @@ On a simulated session's ground truth (``groundtruth/joints.npz``, ``feet.csv``,
    before and after, and the time per frame.
 
     gaitnet simulate --seed 3 --out /tmp/hpose/s3
-    python benchmarks/bench_pose_correction.py /tmp/hpose/s3 [--lbfgs-frames 150]
+    python benchmarks/bench_pose_correction.py /tmp/hpose/s3 [more sessions] [--clean]
 """
 
 from __future__ import annotations
@@ -107,16 +107,18 @@ def load_truth(session: Path) -> dict[str, np.ndarray]:
     }
 
 
-def noisy_camera(T: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+def noisy_camera(T: np.ndarray, rng: np.random.Generator, noise: float = 1.0) -> np.ndarray:
     out = T.copy()
-    out[:, :3, :3] = T[:, :3, :3] @ so3_exp(rng.normal(0, CAMERA_ROT_RAD, (len(T), 3)))
-    out[:, :3, 3] += rng.normal(0, CAMERA_POS_M, (len(T), 3))
+    out[:, :3, :3] = T[:, :3, :3] @ so3_exp(rng.normal(0, noise * CAMERA_ROT_RAD, (len(T), 3)))
+    out[:, :3, 3] += rng.normal(0, noise * CAMERA_POS_M, (len(T), 3))
     return out
 
 
-def noisy_feet(truth: dict[str, np.ndarray], rng: np.random.Generator) -> np.ndarray:
-    feet = truth["marker"] + rng.normal(0, FOOT_NOISE_M, truth["marker"].shape)
-    outlier = rng.random(truth["visible"].shape) < OUTLIER_SHARE
+def noisy_feet(
+    truth: dict[str, np.ndarray], rng: np.random.Generator, noise: float = 1.0
+) -> np.ndarray:
+    feet = truth["marker"] + rng.normal(0, noise * FOOT_NOISE_M, truth["marker"].shape)
+    outlier = rng.random(truth["visible"].shape) < noise * OUTLIER_SHARE
     direction = rng.normal(size=feet.shape)
     direction /= np.linalg.norm(direction, axis=-1, keepdims=True)
     feet += outlier[..., None] * OUTLIER_M * direction
@@ -270,34 +272,42 @@ def predictor_priors(
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("session", type=Path, help="simulated session folder (with groundtruth/)")
-    ap.add_argument("--lbfgs-frames", type=int, default=150, help="frames for the slow baseline")
+    ap.add_argument("sessions", type=Path, nargs="+", help="simulated session folders")
+    ap.add_argument("--lbfgs-frames", type=int, default=40, help="frames for the slow baseline")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--clean", action="store_true", help="noise-free measurements, no outliers")
     ap.add_argument(
         "--model", type=Path, default=Path("models/predictor/dctgcn_synthwalk_small.onnx")
     )
     args = ap.parse_args(argv)
     torch.set_num_threads(1)
-    rng = np.random.default_rng(args.seed)
-    truth = load_truth(args.session)
+    for k, session in enumerate(args.sessions):
+        run_session(session, args, np.random.default_rng(args.seed), k == 0)
+    return 0
+
+
+def run_session(session: Path, args: argparse.Namespace, rng: np.random.Generator, lbfgs: bool):
+    truth = load_truth(session)
     skel = from_rest_joints(truth["rest_joints"])
     n = len(truth["t_s"])
     true_pose = np.concatenate([truth["root_orient"], truth["joint_aa"][:, :6].reshape(n, 18)], 1)
+    noise = 0.0 if args.clean else 1.0
 
     # 1. extrinsic from the standing frames
-    cams = noisy_camera(truth["T_WfromC"], rng)
-    feet = noisy_feet(truth, rng)
+    cams = noisy_camera(truth["T_WfromC"], rng, noise)
+    feet = noisy_feet(truth, rng, noise)
     st = truth["standing"] & truth["visible"].all(axis=1)
     T_WfromP_stand = standing_T_WfromP(skel, np.median(feet[st], axis=0), cams[st][0])
     ext = estimate_T_PfromC(cams[st], T_WfromP_stand)
     nominal = truth["T_PfromC_true"][0]
     d_rot = np.degrees(np.linalg.norm(so3_log(nominal[:3, :3].T @ ext.T_PfromC[:3, :3])))
     d_pos = np.linalg.norm(nominal[:3, 3] - ext.T_PfromC[:3, 3])
-    print(f"session {args.session}: {n} frames, {int(st.sum())} standing frames with both feet")
+    height = np.ptp(skel.rest_joints[:, 1])
+    print(f"\n## session {session.name}: {n} frames, skeleton {height:.2f} m pelvis-to-foot-joint")
+    print(f"measurements: {'clean' if args.clean else 'noisy'}; {int(st.sum())} standing frames")
     print(
         f"extrinsic from standing: {d_rot:.2f} deg, {d_pos * 100:.2f} cm from the first true "
-        "mount; "
-        f"spread {np.degrees(ext.spread_rot_rad):.2f} deg, {ext.spread_pos_m * 100:.2f} cm"
+        f"mount; spread {np.degrees(ext.spread_rot_rad):.2f} deg, {ext.spread_pos_m * 100:.2f} cm"
     )
     T_WfromP = pelvis_from_camera(cams, ext.T_PfromC)
 
@@ -316,8 +326,12 @@ def main(argv: list[str] | None = None) -> int:
         "+ constraints (hinge, ROM, fixed lengths)": PoseCorrectionParams.thesis(
             knee_hinge=True, rom_limits=True, fixed_lengths=True
         ),
-        "+ robust Cauchy, contact weighting": PoseCorrectionParams(marker_offset=False),
-        "+ marker offset (all: the default)": PoseCorrectionParams(),
+        "+ robust Cauchy, contact weighting": PoseCorrectionParams(
+            contact_weighting=True, marker_offset=False
+        ),
+        "+ marker offset (all)": PoseCorrectionParams(contact_weighting=True),
+        "all but contact weighting (the default)": PoseCorrectionParams(),
+        "all but robust and contact": PoseCorrectionParams(robust_foot=False),
     }
     drawn = drawn_priors(truth, true_pose, rng)
     for kind, (idx, prior_pose, prior_trans) in {
@@ -343,6 +357,8 @@ def main(argv: list[str] | None = None) -> int:
             f"LM iterations (all): median {np.median(info.iterations):.0f}, "
             f"max {info.iterations.max()}"
         )
+    if not lbfgs or args.lbfgs_frames <= 0:
+        return
 
     # 3. the naive L-BFGS on evenly spaced frames, against LM on the same frames
     idx, prior_pose, prior_trans = drawn
@@ -357,25 +373,11 @@ def main(argv: list[str] | None = None) -> int:
     print(HEADER)
     print(report(skel, truth, idx[sub], "prior", prior_pose[sub], prior_trans[sub], 0.0, 0.0))
     lb_pose, lb_trans = np.stack([p for p, _ in lb]), np.stack([t for _, t in lb])
-    print(
-        report(
-            skel,
-            truth,
-            idx[sub],
-            "naive torch L-BFGS, thesis objective",
-            lb_pose,
-            lb_trans,
-            wall,
-            cpu,
-        )
-    )
+    name = "naive torch L-BFGS, thesis objective"
+    print(report(skel, truth, idx[sub], name, lb_pose, lb_trans, wall, cpu))
     pose, trans, wall, cpu = timed_per_frame(priors, m, skel, par)
-    print(
-        report(
-            skel, truth, idx[sub], "LM, thesis objective (eq. 4.8, squared)", pose, trans, wall, cpu
-        )
-    )
-    return 0
+    name = "LM, thesis objective (eq. 4.8, squared)"
+    print(report(skel, truth, idx[sub], name, pose, trans, wall, cpu))
 
 
 if __name__ == "__main__":

@@ -203,13 +203,13 @@ def test_pose_satisfying_every_measurement_stays_put() -> None:
 
 def test_root_offset_is_removed_by_the_weighted_mean() -> None:
     # Pelvis position only, no feet: the translation is the weighted mean of prior and measurement
-    # (weights 1/σ²), by hand: (t̄/0.1² + t̃/0.02²) / (1/0.1² + 1/0.02²).
-    par = PoseCorrectionParams()
+    # (weights 1/σ²), by hand: (t̄/0.1² + t̃/0.02²) / (1/0.1² + 1/0.02²). Tight tolerance.
+    par = PoseCorrectionParams(cost_tolerance=1e-14)
     prior = PoseState(TRUE.pose, TRUE.trans + [0.05, -0.02, 0.03])
     m = FrameMeasurements(p_PinW=SKEL.rest_joints[0] + TRUE.trans)
     out, _ = correct_pose(prior, m, SKEL, par)
     expected = (prior.trans / 0.1**2 + TRUE.trans / 0.02**2) / (1 / 0.1**2 + 1 / 0.02**2)
-    np.testing.assert_allclose(out.trans, expected, atol=1e-6)  # LM stopping tolerance
+    np.testing.assert_allclose(out.trans, expected, atol=1e-9)
     np.testing.assert_allclose(out.pose, prior.pose, atol=1e-9)
     # Everything measured (pelvis and both feet, σ 2 cm against the prior's 10 cm): ≥ 95 % goes.
     out, _ = correct_pose(prior, exact_measurements(TRUE, par), SKEL, par)
@@ -219,13 +219,13 @@ def test_root_offset_is_removed_by_the_weighted_mean() -> None:
 def test_root_rotation_is_the_weighted_geodesic_mean() -> None:
     # Prior and measurement differ by a rotation about one axis: the result lies on it, at the
     # weighted mean angle (1/σ² weights), by hand 0.1 · (1/0.02²) / (1/0.1² + 1/0.02²).
-    par = PoseCorrectionParams()
+    par = PoseCorrectionParams(cost_tolerance=1e-14)
     axis = np.array([0.0, 0.0, 1.0])
     R_meas = so3_exp(TRUE.root_orient) @ so3_exp(0.1 * axis)
     m = FrameMeasurements(R_WfromP=R_meas @ R_PfromSMPL.T)
     out, _ = correct_pose(TRUE, m, SKEL, par)
     rel = so3_log(so3_exp(TRUE.root_orient).T @ so3_exp(out.root_orient))
-    np.testing.assert_allclose(rel, 0.1 * axis / (1 + 0.02**2 / 0.1**2), atol=1e-6)
+    np.testing.assert_allclose(rel, 0.1 * axis / (1 + 0.02**2 / 0.1**2), atol=1e-9)
 
 
 def test_foot_measurement_pulls_the_ankle_chain_of_its_leg_only() -> None:
@@ -312,7 +312,7 @@ def test_contact_weighting_pulls_a_stance_foot_harder() -> None:
     dist = {}
     for contact in ([0.0, 0.0], [1.0, 1.0]):
         m = FrameMeasurements(m0.R_WfromP, m0.p_PinW, foot, contact)
-        _, info = correct_pose(TRUE, m, SKEL, PoseCorrectionParams())
+        _, info = correct_pose(TRUE, m, SKEL, PoseCorrectionParams(contact_weighting=True))
         dist[contact[0]] = np.linalg.norm(info.foot_points[0] - foot, axis=1)
     assert np.all(dist[1.0] < 0.8 * dist[0.0])
 
@@ -370,7 +370,7 @@ CHANGES = {
     "rom_deg": tuple(tuple((-60.0, 60.0) for _ in range(3)) for _ in range(6)),
     "robust_foot": False,
     "cauchy_scale_m": 0.2,
-    "contact_weighting": False,
+    "contact_weighting": True,
     "contact_gain": 10.0,
     "marker_offset": False,
     "marker_offset_m": (0.0, 0.0, 0.12),
@@ -379,7 +379,7 @@ CHANGES = {
     "cost_tolerance": 0.5,
 }
 # Keys that only act together with another switch.
-NEEDS = {"sigma_bone_m": {"fixed_lengths": False}}
+NEEDS = {"sigma_bone_m": {"fixed_lengths": False}, "contact_gain": {"contact_weighting": True}}
 
 
 def test_every_parameter_is_tested() -> None:

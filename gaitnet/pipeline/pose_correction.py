@@ -130,7 +130,7 @@ def _levenberg_marquardt(
     r, J, cost = evaluate(pb, s)
     cost0 = cost.copy()
     B, n = J.shape[0], J.shape[2]
-    lam = np.full(B, 1e-3)
+    lam = np.full(B, 1e-4)
     active = np.ones(B, dtype=bool)
     iterations = np.zeros(B, dtype=np.int64)
     eye = np.eye(n)
@@ -141,6 +141,13 @@ def _levenberg_marquardt(
         diag = np.einsum("bii->bi", H)
         A = H + (lam[:, None] * diag + 1e-9)[:, :, None] * eye
         step = -np.linalg.solve(A, g[..., None])[..., 0]
+        step[~active] = 0.0
+        # The linear model's predicted decrease −2gᵀΔ − ΔᵀHΔ: below the tolerance, stop
+        # without evaluating the step.
+        predicted = -2.0 * np.einsum("bi,bi->b", g, step) - np.einsum("bi,bij,bj->b", step, H, step)
+        active &= predicted > par.cost_tolerance * cost
+        if not active.any():
+            break
         step[~active] = 0.0
         trial = retract(s, step)
         r_t, J_t, cost_t = evaluate(pb, trial)

@@ -55,6 +55,7 @@ _L0 = 24  # first column of the bone lengths (free lengths only)
 _GEN = np.zeros((3, 9))
 _GEN[2, 1], _GEN[1, 2], _GEN[2, 3], _GEN[0, 5], _GEN[1, 6], _GEN[0, 7] = -1, 1, 1, -1, -1, 1
 _EYE3 = np.eye(3)
+_VEE_PLUS, _VEE_MINUS, _DIAG = [7, 2, 3], [5, 6, 1], [0, 4, 8]  # R − Rᵀ → vector
 
 
 def _skew(v: FloatArray) -> FloatArray:
@@ -86,12 +87,10 @@ def log_and_right_jacobian_inv(R: FloatArray) -> tuple[FloatArray, FloatArray]:
     ``φ`` by the ``atan2`` form (accurate near 0) below 90°, else :func:`gaitnet.geometry.
     so3_log`; ``Jr⁻¹ = I + ½K + (1/θ² − (1 + cos θ)/(2θ sin θ)) K²`` (series below 1e-2 rad).
     """
-    v = 0.5 * np.stack(
-        [R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]],
-        axis=-1,
-    )
+    Rf = R.reshape(*R.shape[:-2], 9)
+    v = 0.5 * (Rf[..., _VEE_PLUS] - Rf[..., _VEE_MINUS])
     s = np.sqrt(np.einsum("...i,...i->...", v, v))
-    c = 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
+    c = 0.5 * (Rf[..., _DIAG].sum(axis=-1) - 1.0)
     theta = np.arctan2(s, c)
     phi = v * (theta / np.maximum(s, 1e-300))[..., None]
     tiny = s < 1e-300
@@ -287,14 +286,22 @@ def _foot_jacobian(pts: dict[str, FloatArray], s: ChainState, n: int) -> FloatAr
     Jf = np.zeros((B, 2, 3, n))
     Jf[..., 0:3] = -_skew(f - pts["p0"][:, None]) @ s.R0[:, None]
     Jf[..., 3:6] = _EYE3
-    Jr = pts["Jr"]
-    for level, (joint, G) in enumerate(
-        ((pts["hip"], pts["G_hip"]), (pts["knee"], pts["G_knee"]), (pts["ankle"], pts["G_ank"]))
-    ):
-        block = -_skew(f - joint) @ G @ Jr[:, 2 * level : 2 * level + 2]  # (B, 2, 3, 3)
-        for side in (0, 1):
-            col = _A0 + 3 * (2 * level + side)
-            Jf[:, side, :, col : col + 3] = block[:, side]
+    # Levels hip, knee, ankle: (B, side, level, 3, 3); Jr rows are ordered (level, side).
+    G = np.stack([pts["G_hip"], pts["G_knee"], pts["G_ank"]], axis=2)
+    Jr = pts["Jr"].reshape(B, 3, 2, 3, 3).swapaxes(1, 2)
+    lever = f[:, :, None] - np.stack([pts["hip"], pts["knee"], pts["ankle"]], axis=2)
+    block = -_skew(lever) @ G @ Jr  # (B, side, level, 3 rows, 3 components)
+    Ja = Jf[..., _A0:_L0].view()
+    Ja.shape = (
+        B,
+        2,
+        3,
+        3,
+        2,
+        3,
+    )  # a view of Jf (raises otherwise): (B, side, row, level, side', comp)
+    for side in (0, 1):
+        Ja[:, side, :, :, side, :] = block[:, side].swapaxes(1, 2)
     if n > N_BASE_PARAMS:
         for side in (0, 1):
             Jf[:, side, :, _L0 + side] = pts["d_thigh"][:, side]

@@ -151,7 +151,7 @@ class PoseCorrectionParams:
     rom_deg: tuple[tuple[tuple[float, float], ...], ...] = DEFAULT_ROM_DEG
     robust_foot: bool = True
     cauchy_scale_m: float = 0.05
-    contact_weighting: bool = True
+    contact_weighting: bool = False
     contact_gain: float = 2.0
     marker_offset: bool = True
     marker_offset_m: tuple[float, float, float] = (0.0, -0.012, 0.078)

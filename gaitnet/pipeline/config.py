@@ -1,0 +1,86 @@
+"""The ``gaitnet infer`` config (docs/configs.md, *Inference*): one YAML tree over every stage.
+
+``vio`` is the filter and smoother's whole config (:class:`~gaitnet.vio.config.VioConfig`),
+``hha`` and ``feet`` the segmenter's input encoding and post-processing
+(:class:`~gaitnet.segmentation.hha.HhaParams`,
+:class:`~gaitnet.segmentation.postprocess.FootKeypointParams`), ``correction`` the pose
+correction (:class:`~gaitnet.pipeline.pose_types.PoseCorrectionParams`), ``models`` the ONNX
+files and ``pipeline`` how the stages are joined (:class:`PipelineParams`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+from gaitnet.checks import check_int_range, check_range
+from gaitnet.pipeline.pose_types import PoseCorrectionParams
+from gaitnet.segmentation.hha import HhaParams
+from gaitnet.segmentation.postprocess import FootKeypointParams
+from gaitnet.vio.config import VioConfig
+
+__all__ = ["InferConfig", "ModelParams", "PipelineParams"]
+
+
+@dataclass(frozen=True)
+class ModelParams:
+    """The two networks (``None``: the committed small models, docs/segmenter.md and
+    docs/predictor.md) and onnxruntime's threads."""
+
+    segmenter: str | None = None
+    """Segmenter ONNX file (``export/to_onnx.py segmenter``)."""
+    predictor: str | None = None
+    """Motion predictor ONNX file (``export/to_onnx.py predictor``)."""
+    threads: int = 1
+    """onnxruntime intra-op threads of each network (0: onnxruntime's default)."""
+
+    def __post_init__(self) -> None:
+        check_int_range("models.threads", self.threads, 0, 64)
+
+
+@dataclass(frozen=True)
+class PipelineParams:
+    """How the filter, the segmenter, the predictor and the correction are joined."""
+
+    foot_keypoint: Literal["top", "mid", "bottom"] = "mid"
+    """Which keypoint of eq. 4.1 is a foot's measured point (``mid``: the middle of the visible
+    shoe, nearest the instep marker the pose correction's offset points to)."""
+    subject_height_m: float = 0.0
+    """Body height for the anthropometric skeleton [m]; 0: from the standing camera height
+    (``camera_height_fraction``)."""
+    camera_height_fraction: float = 0.62
+    """Height of a waist-worn camera above the floor as a fraction of body height (a belt at
+    the waist, above the hip joints' 0.53 of stature in Winter's tables; the simulator's mounts
+    give 0.60–0.65 over the 30 sessions of the filter's protocol)."""
+    standing_s: float = 1.0
+    """At most this long at the start is used as the standing phase for the camera-to-pelvis
+    extrinsic [s]."""
+    standing_max_speed_mps: float = 0.05
+    """Frames whose camera moves faster than this end the standing phase [m/s]."""
+    max_gap_s: float = 0.5
+    """The predictor carries the pose alone through at most this long without a root pose
+    [s]; longer gaps hold the last corrected pose."""
+
+    def __post_init__(self) -> None:
+        if self.foot_keypoint not in ("top", "mid", "bottom"):
+            raise ValueError(
+                f"pipeline.foot_keypoint must be top, mid or bottom, got {self.foot_keypoint!r}"
+            )
+        if self.subject_height_m != 0:
+            check_range("pipeline.subject_height_m", self.subject_height_m, 0.8, 2.3, " m")
+        check_range("pipeline.camera_height_fraction", self.camera_height_fraction, 0.3, 0.8)
+        check_range("pipeline.standing_s", self.standing_s, 0.1, 10.0, " s")
+        check_range("pipeline.standing_max_speed_mps", self.standing_max_speed_mps, 0.0, 1.0)
+        check_range("pipeline.max_gap_s", self.max_gap_s, 0.0, 10.0, " s")
+
+
+@dataclass(frozen=True)
+class InferConfig:
+    """The whole ``gaitnet infer`` config (module docstring)."""
+
+    vio: VioConfig = field(default_factory=VioConfig)
+    models: ModelParams = field(default_factory=ModelParams)
+    hha: HhaParams = field(default_factory=HhaParams)
+    feet: FootKeypointParams = field(default_factory=FootKeypointParams)
+    correction: PoseCorrectionParams = field(default_factory=PoseCorrectionParams)
+    pipeline: PipelineParams = field(default_factory=PipelineParams)

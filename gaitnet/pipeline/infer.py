@@ -1,0 +1,280 @@
+"""``gaitnet infer``: the filter, the segmenter, the predictor and the pose correction joined
+(thesis sec. 4.1.4, 4.2.4, 5.2.2–5.2.3; docs/pipeline.md).
+
+1. The filter and smoother (:func:`gaitnet.vio.run.run_vio`): camera trajectory, stance feet,
+   strides.
+2. Per processed frame, the measured foot points in the world
+   (:func:`gaitnet.pipeline.foot_points.measure_feet`, HHA with the filter's gravity and floor).
+3. The standing phase at the start (the camera still, at most ``pipeline.standing_s``) gives the
+   subject's skeleton (body height from the camera height unless configured) and the
+   camera-to-pelvis extrinsic (:mod:`gaitnet.pipeline.pelvis_extrinsic`): the standing skeleton
+   is placed on the measured feet, facing the camera's direction.
+4. Predict and correct, frame by frame: the motion predictor (ONNX, 10 past poses → the next,
+   heading-normalised as in training) gives the prior, which the correction (eq. 4.7–4.8,
+   :func:`gaitnet.pipeline.pose_correction.correct_pose`) pulls towards the pelvis pose from the
+   filter, the measured feet and, with ``correction.contact_weighting``, the stance intervals of
+   the filter's stance feet. The first 10 poses are the standing pose.
+5. Forward kinematics give the joints, and the shoe markers (ankle plus the correction's marker
+   offset) the gap-free foot trajectories: measured frames and frames filled by prediction
+   are flagged.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gaitnet.errors import SessionError
+from gaitnet.geometry import so3_exp, so3_log
+from gaitnet.io.types import SessionSource
+from gaitnet.motion.heading import normalise_heading
+from gaitnet.motion.onnx_runtime import OnnxPredictor
+from gaitnet.motion.skeleton import LowerBodySkeleton, builtin_skeleton, forward_kinematics
+from gaitnet.pipeline.config import InferConfig
+from gaitnet.pipeline.foot_points import measure_feet
+from gaitnet.pipeline.pelvis_extrinsic import (
+    PelvisExtrinsic,
+    estimate_T_PfromC,
+    pelvis_from_camera,
+    standing_T_WfromP,
+)
+from gaitnet.pipeline.pose_correction import correct_pose
+from gaitnet.pipeline.pose_types import FrameMeasurements, PoseState, R_PfromSMPL
+from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
+from gaitnet.vio.result import VioResult
+from gaitnet.vio.run import run_vio
+
+log = logging.getLogger(__name__)
+
+__all__ = ["InferResult", "run_infer"]
+
+Progress = Callable[[Iterable, int], Iterable]
+SIDES = ("left", "right")
+
+
+@dataclass
+class InferResult:
+    """Everything ``gaitnet infer`` computed, at the frames the filter processed.
+
+    ``t_s`` (n,) frame times, ``poses`` (n, 21) in the predictor's node layout and ``trans``
+    (n, 3) the corrected SMPL poses; ``joints_W`` (n, 9, 3) SMPL joints [0, 1, 2, 4, 5, 7, 8,
+    10, 11] (the layout of ``groundtruth/joints.npz``); ``feet_W`` (n, 2, 3) the shoe markers
+    of the corrected pose (left, right), ``foot_measured`` (n, 2) whether the segmenter saw
+    each foot, ``foot_measured_W`` (n, 2, 3) the measured points (NaN where not seen);
+    ``contact`` (n, 2) the filter's stance flags.
+    """
+
+    vio: VioResult
+    t_s: np.ndarray
+    t_ns: np.ndarray
+    poses: np.ndarray
+    trans: np.ndarray
+    joints_W: np.ndarray
+    feet_W: np.ndarray
+    foot_measured: np.ndarray
+    foot_measured_W: np.ndarray
+    contact: np.ndarray
+    skeleton: LowerBodySkeleton
+    subject_height_m: float
+    extrinsic: PelvisExtrinsic
+    standing_frames: int
+    segmenter_path: str
+    predictor_path: str
+    timings_s: dict[str, float] = field(default_factory=dict)
+    correction_iterations: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+
+
+def _contact(vio: VioResult, t_s: np.ndarray) -> np.ndarray:
+    """(n, 2) 1 where the filter saw that foot resting on the floor (a stance landmark)."""
+    c = np.zeros((len(t_s), 2))
+    for foot in vio.stance_feet:
+        if foot.side in SIDES:
+            inside = (t_s >= foot.t_first_s - 1e-6) & (t_s <= foot.t_last_s + 1e-6)
+            c[inside, SIDES.index(foot.side)] = 1.0
+    return c
+
+
+def _standing_frames(t_s: np.ndarray, T_WfromC: np.ndarray, cfg: InferConfig) -> int:
+    """Frames at the start before the camera moves (or ``standing_s`` ends); at least 1."""
+    p = cfg.pipeline
+    if len(t_s) < 2:
+        return len(t_s)
+    speed = np.linalg.norm(np.diff(T_WfromC[:, :3, 3], axis=0), axis=1) / np.maximum(
+        np.diff(t_s), 1e-6
+    )
+    n = 1
+    while (
+        n < len(t_s)
+        and t_s[n] - t_s[0] <= p.standing_s
+        and speed[n - 1] <= (p.standing_max_speed_mps)
+    ):
+        n += 1
+    return n
+
+
+def _standing_feet(
+    measured: np.ndarray, vio: VioResult, skeleton_marker_height: float, n_standing: int
+) -> np.ndarray:
+    """(2, 3) standing foot points: the mean of the measured ones over the standing frames,
+    else the first stance landmark of that side at the marker's standing height."""
+    feet = np.full((2, 3), np.nan)
+    for i, side in enumerate(SIDES):
+        seen = measured[:n_standing, i]
+        seen = seen[~np.isnan(seen[:, 0])]
+        if len(seen):
+            feet[i] = seen.mean(axis=0)
+            continue
+        first = [f for f in vio.stance_feet if f.side == side]
+        if first:
+            xy = min(first, key=lambda f: f.t_first_s).xy
+            feet[i] = [xy[0], xy[1], skeleton_marker_height]
+    if np.isnan(feet).any():
+        raise SessionError(
+            "no standing foot: neither the segmenter nor the filter found both feet at the "
+            "start (does the session start with the subject standing in view?)"
+        )
+    return feet
+
+
+def _initial_pose(T_WfromP: np.ndarray, skeleton: LowerBodySkeleton) -> PoseState:
+    root = so3_log(T_WfromP[:3, :3] @ R_PfromSMPL)
+    return PoseState(
+        pose=np.concatenate([root, np.zeros(18)]),
+        trans=T_WfromP[:3, 3] - skeleton.rest_joints[0],
+    )
+
+
+def _predict(predictor: OnnxPredictor, history: list[PoseState]) -> PoseState:
+    """The predictor's next pose after ``history`` (its last ``n_past`` poses), in the world."""
+    past = np.stack([h.pose for h in history])
+    trans = np.stack([h.trans for h in history])
+    root_n, _, yaw = normalise_heading(past[:, :3], trans, ref=len(past) - 1)
+    window = past.copy()
+    window[:, :3] = root_n
+    nxt = predictor.predict_future(window[None].astype(np.float32))[0, 0].astype(np.float64)
+    root = so3_log(so3_exp(np.array([0.0, 0.0, yaw])) @ so3_exp(nxt[:3]))
+    velocity = trans[-1] - trans[-2] if len(trans) > 1 else np.zeros(3)
+    return PoseState(pose=np.concatenate([root, nxt[3:]]), trans=trans[-1] + velocity)
+
+
+def run_infer(
+    session: SessionSource,
+    cfg: InferConfig,
+    segmenter: OnnxSegmenter,
+    predictor: OnnxPredictor,
+    progress: Callable[[str], Progress] | None = None,
+    keep_labels: Callable[[int, np.ndarray], None] | None = None,
+) -> InferResult:
+    """Run the whole pipeline on ``session`` (module docstring).
+
+    ``progress(stage)`` returns a progress wrapper for the stage's iterable (``"filter"``,
+    ``"segmenter"``, ``"pose"``); ``keep_labels(t_ns, labels)`` receives each label map.
+    """
+    timings: dict[str, float] = {}
+
+    def bar(stage: str) -> Progress | None:
+        return progress(stage) if progress is not None else None
+
+    t0 = time.perf_counter()
+    vio = run_vio(session, cfg.vio, progress=bar("filter"))
+    timings["filter"] = time.perf_counter() - t0
+    n = len(vio.t_s)
+    if n < 2:
+        raise SessionError(f"the filter processed {n} frame(s); need at least 2")
+    T_WfromC = vio.T_WfromC
+    index_of = {int(i): k for k, i in enumerate(vio.session_index)}
+    K = session.calibration.color.K
+    keypoint = cfg.pipeline.foot_keypoint
+
+    t0 = time.perf_counter()
+    measured = np.full((n, 2, 3), np.nan)
+    t_ns = np.zeros(n, np.int64)
+    frames: Iterable = session.frames()
+    wrap = bar("segmenter")
+    if wrap is not None:
+        frames = wrap(frames, len(session))
+    for frame in frames:
+        k = index_of.get(frame.index)
+        if k is None:
+            continue
+        feet = measure_feet(frame, K, T_WfromC[k], segmenter, keypoint, cfg.hha, cfg.feet)
+        measured[k] = feet.foot_W
+        t_ns[k] = frame.t_ns
+        if keep_labels is not None:
+            keep_labels(frame.t_ns, feet.labels)
+    timings["segmenter"] = time.perf_counter() - t0
+
+    n_standing = _standing_frames(vio.t_s, T_WfromC, cfg)
+    height = cfg.pipeline.subject_height_m
+    if height == 0:
+        camera_height = float(np.median(T_WfromC[:n_standing, 2, 3]))
+        height = float(np.clip(camera_height / cfg.pipeline.camera_height_fraction, 1.2, 2.1))
+    skeleton = builtin_skeleton(height)
+    ankle_height = 0.039 * height
+    marker_height = ankle_height + cfg.correction.marker_offset_m[1]
+    foot0 = _standing_feet(measured, vio, marker_height, n_standing)
+    T_WfromP0 = standing_T_WfromP(skeleton, foot0, T_WfromC[0], params=cfg.correction)
+    extrinsic = estimate_T_PfromC(T_WfromC[:n_standing], T_WfromP0)
+    T_WfromP = pelvis_from_camera(T_WfromC, extrinsic.T_PfromC)
+    contact = _contact(vio, vio.t_s)
+
+    t0 = time.perf_counter()
+    n_past = predictor.n_past or 10
+    history = [_initial_pose(T_WfromP[0], skeleton)] * n_past
+    poses = np.zeros((n, 21))
+    trans = np.zeros((n, 3))
+    feet_W = np.zeros((n, 2, 3))
+    iterations = np.zeros(n, np.int64)
+    steps: Iterable = range(n)
+    wrap = bar("pose")
+    if wrap is not None:
+        steps = wrap(steps, n)
+    for k in steps:
+        prior = history[-1] if k < n_standing else _predict(predictor, history[-n_past:])
+        meas = FrameMeasurements(
+            R_WfromP=T_WfromP[k, :3, :3],
+            p_PinW=T_WfromP[k, :3, 3],
+            foot_W=measured[k],
+            contact=contact[k],
+        )
+        pose, info = correct_pose(prior, meas, skeleton, cfg.correction)
+        poses[k], trans[k] = pose.pose, pose.trans
+        feet_W[k] = info.foot_points[0]
+        iterations[k] = int(np.asarray(info.iterations).ravel()[0])
+        history.append(pose)
+        history = history[-n_past:]
+    timings["pose"] = time.perf_counter() - t0
+
+    aa = np.concatenate([poses[:, 3:].reshape(n, 6, 3), np.zeros((n, 2, 3))], axis=1)
+    joints = forward_kinematics(skeleton, poses[:, :3], trans, aa)
+    log.info(
+        "standing phase %d frames; body height %.2f m; extrinsic spread %.1f mm / %.2f°",
+        n_standing,
+        height,
+        1e3 * extrinsic.spread_pos_m,
+        np.degrees(extrinsic.spread_rot_rad),
+    )
+    return InferResult(
+        vio=vio,
+        t_s=vio.t_s.copy(),
+        t_ns=t_ns,
+        poses=poses,
+        trans=trans,
+        joints_W=joints,
+        feet_W=feet_W,
+        foot_measured=~np.isnan(measured[:, :, 0]),
+        foot_measured_W=measured,
+        contact=contact,
+        skeleton=skeleton,
+        subject_height_m=height,
+        extrinsic=extrinsic,
+        standing_frames=n_standing,
+        segmenter_path=str(segmenter.path),
+        predictor_path=str(predictor.path),
+        timings_s=timings,
+        correction_iterations=iterations,
+    )
