@@ -19,7 +19,18 @@ from gaitnet.segmentation.hha import HhaParams
 from gaitnet.segmentation.postprocess import FootKeypointParams
 from gaitnet.vio.config import VioConfig
 
-__all__ = ["InferConfig", "ModelParams", "PipelineParams"]
+__all__ = ["REFERENCE_HEIGHT_M", "InferConfig", "ModelParams", "PipelineParams"]
+
+REFERENCE_HEIGHT_M = 1.70
+"""Body height [m] for which the foot offsets (``correction.marker_offset_m``,
+``pipeline.marker_offset_m``) are given; they scale with the subject's height (a shoe is about
+0.15 of stature)."""
+
+KEYPOINT_OFFSET_M = (0.0, -0.019, 0.116)
+"""Where the segmenter's ``mid`` keypoint lies on a standing shoe, from the ankle (SMPL ankle
+axes, at :data:`REFERENCE_HEIGHT_M`): measured with true label maps on the tuning session
+S1_5m_t1 (seed 1000), stance frames: 10.6 cm forward and 1.8 cm below the ankle for its 1.54 m
+subject."""
 
 
 @dataclass(frozen=True)
@@ -57,9 +68,11 @@ class PipelineParams:
     extrinsic [s]."""
     standing_max_speed_mps: float = 0.05
     """Frames whose camera moves faster than this end the standing phase [m/s]."""
-    max_gap_s: float = 0.5
-    """The predictor carries the pose alone through at most this long without a root pose
-    [s]; longer gaps hold the last corrected pose."""
+    marker_offset_m: tuple[float, float, float] = (0.0, -0.011, 0.079)
+    """The reported foot point (``feet.csv``, the foot trajectories): the shoe marker over the
+    instep, in the ankle frame (SMPL axes: x left, y up, z forward; mirrored for the right
+    foot) for a body of :data:`REFERENCE_HEIGHT_M`, scaled by the body height [m]. The
+    default is the simulator's instep marker (tuning session S1_5m_t1, seed 1000)."""
 
     def __post_init__(self) -> None:
         if self.foot_keypoint not in ("top", "mid", "bottom"):
@@ -71,7 +84,10 @@ class PipelineParams:
         check_range("pipeline.camera_height_fraction", self.camera_height_fraction, 0.3, 0.8)
         check_range("pipeline.standing_s", self.standing_s, 0.1, 10.0, " s")
         check_range("pipeline.standing_max_speed_mps", self.standing_max_speed_mps, 0.0, 1.0)
-        check_range("pipeline.max_gap_s", self.max_gap_s, 0.0, 10.0, " s")
+        if len(self.marker_offset_m) != 3:
+            raise ValueError("pipeline.marker_offset_m must be three numbers [m]")
+        for value in self.marker_offset_m:
+            check_range("pipeline.marker_offset_m", value, -0.3, 0.3, " m")
 
 
 @dataclass(frozen=True)
@@ -82,5 +98,9 @@ class InferConfig:
     models: ModelParams = field(default_factory=ModelParams)
     hha: HhaParams = field(default_factory=HhaParams)
     feet: FootKeypointParams = field(default_factory=FootKeypointParams)
-    correction: PoseCorrectionParams = field(default_factory=PoseCorrectionParams)
+    correction: PoseCorrectionParams = field(
+        default_factory=lambda: PoseCorrectionParams(marker_offset_m=KEYPOINT_OFFSET_M)
+    )
+    """The correction (eq. 4.7–4.8); its ``marker_offset_m`` is the measured keypoint's offset
+    from the ankle at :data:`REFERENCE_HEIGHT_M`, scaled by the body height."""
     pipeline: PipelineParams = field(default_factory=PipelineParams)

@@ -24,7 +24,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -34,7 +34,7 @@ from gaitnet.io.types import SessionSource
 from gaitnet.motion.heading import normalise_heading
 from gaitnet.motion.onnx_runtime import OnnxPredictor
 from gaitnet.motion.skeleton import LowerBodySkeleton, builtin_skeleton, forward_kinematics
-from gaitnet.pipeline.config import InferConfig
+from gaitnet.pipeline.config import REFERENCE_HEIGHT_M, InferConfig
 from gaitnet.pipeline.foot_points import measure_feet
 from gaitnet.pipeline.pelvis_extrinsic import (
     PelvisExtrinsic,
@@ -43,6 +43,7 @@ from gaitnet.pipeline.pelvis_extrinsic import (
     standing_T_WfromP,
 )
 from gaitnet.pipeline.pose_correction import correct_pose
+from gaitnet.pipeline.pose_residuals import ChainGeometry, ChainState, chain_points
 from gaitnet.pipeline.pose_types import FrameMeasurements, PoseState, R_PfromSMPL
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
 from gaitnet.vio.result import VioResult
@@ -214,10 +215,13 @@ def run_infer(
         camera_height = float(np.median(T_WfromC[:n_standing, 2, 3]))
         height = float(np.clip(camera_height / cfg.pipeline.camera_height_fraction, 1.2, 2.1))
     skeleton = builtin_skeleton(height)
-    ankle_height = 0.039 * height
-    marker_height = ankle_height + cfg.correction.marker_offset_m[1]
+    scale = height / REFERENCE_HEIGHT_M
+    correction = replace(
+        cfg.correction, marker_offset_m=tuple(scale * np.array(cfg.correction.marker_offset_m))
+    )
+    marker_height = 0.039 * height + correction.marker_offset_m[1]  # ankle height + offset
     foot0 = _standing_feet(measured, vio, marker_height, n_standing)
-    T_WfromP0 = standing_T_WfromP(skeleton, foot0, T_WfromC[0], params=cfg.correction)
+    T_WfromP0 = standing_T_WfromP(skeleton, foot0, T_WfromC[0], params=correction)
     extrinsic = estimate_T_PfromC(T_WfromC[:n_standing], T_WfromP0)
     T_WfromP = pelvis_from_camera(T_WfromC, extrinsic.T_PfromC)
     contact = _contact(vio, vio.t_s)
@@ -227,7 +231,7 @@ def run_infer(
     history = [_initial_pose(T_WfromP[0], skeleton)] * n_past
     poses = np.zeros((n, 21))
     trans = np.zeros((n, 3))
-    feet_W = np.zeros((n, 2, 3))
+    lengths = np.zeros((n, 4))
     iterations = np.zeros(n, np.int64)
     steps: Iterable = range(n)
     wrap = bar("pose")
@@ -241,9 +245,9 @@ def run_infer(
             foot_W=measured[k],
             contact=contact[k],
         )
-        pose, info = correct_pose(prior, meas, skeleton, cfg.correction)
+        pose, info = correct_pose(prior, meas, skeleton, correction)
         poses[k], trans[k] = pose.pose, pose.trans
-        feet_W[k] = info.foot_points[0]
+        lengths[k] = info.bone_lengths[0]
         iterations[k] = int(np.asarray(info.iterations).ravel()[0])
         history.append(pose)
         history = history[-n_past:]
@@ -251,6 +255,15 @@ def run_infer(
 
     aa = np.concatenate([poses[:, 3:].reshape(n, 6, 3), np.zeros((n, 2, 3))], axis=1)
     joints = forward_kinematics(skeleton, poses[:, :3], trans, aa)
+    marker = replace(
+        correction,
+        marker_offset=True,
+        marker_offset_m=tuple(scale * np.array(cfg.pipeline.marker_offset_m)),
+    )
+    state = ChainState(
+        R0=so3_exp(poses[:, :3]), t=trans, a=poses[:, 3:].reshape(n, 6, 3), l=lengths
+    )
+    feet_W = chain_points(ChainGeometry.build(skeleton, marker), state)["foot"]
     log.info(
         "standing phase %d frames; body height %.2f m; extrinsic spread %.1f mm / %.2f°",
         n_standing,

@@ -26,6 +26,7 @@ moves the points below it along the posed bone: ``∂p/∂l = G_parent u``. The 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -55,6 +56,8 @@ _L0 = 24  # first column of the bone lengths (free lengths only)
 _GEN = np.zeros((3, 9))
 _GEN[2, 1], _GEN[1, 2], _GEN[2, 3], _GEN[0, 5], _GEN[1, 6], _GEN[0, 7] = -1, 1, 1, -1, -1, 1
 _EYE3 = np.eye(3)
+_KNEE_YZ = [7, 8, 10, 11]  # y, z of L_knee and R_knee among the 18 joint values
+_ROWS18 = np.arange(18)
 _VEE_PLUS, _VEE_MINUS, _DIAG = [7, 2, 3], [5, 6, 1], [0, 4, 8]  # R − Rᵀ → vector
 
 
@@ -175,6 +178,33 @@ class Problem:
     def n_params(self) -> int:
         return N_BASE_PARAMS + (0 if self.params.fixed_lengths else 4)
 
+    @cached_property
+    def n_residuals(self) -> int:
+        par = self.params
+        return 36 + 4 * (not par.fixed_lengths) + 4 * par.knee_hinge + 18 * par.rom_limits
+
+    @cached_property
+    def w_rot(self) -> FloatArray:
+        """(B, 2) weights of the root rotation against its prior and its measurement."""
+        w_prior = np.full(len(self.w_root_rot), 1 / self.params.sigma_prior_root_rad)
+        return np.stack([w_prior, self.w_root_rot], axis=1)
+
+    @cached_property
+    def J_const(self) -> FloatArray:
+        """The Jacobian's rows that do not depend on the state (B, m, n), zeros elsewhere."""
+        par, B = self.params, len(self.w_root_rot)
+        J = np.zeros((B, self.n_residuals, self.n_params))
+        J[:, np.arange(18), _A0 + np.arange(18)] = 1 / par.sigma_prior_joint_rad
+        J[:, np.arange(24, 27), np.arange(3, 6)] = 1 / par.sigma_prior_trans_m
+        J[:, np.arange(27, 30), np.arange(3, 6)] = self.w_root_pos[:, None]
+        row = 36
+        if not par.fixed_lengths:
+            J[:, np.arange(row, row + 4), _L0 + np.arange(4)] = 1 / par.sigma_bone_m
+            row += 4
+        if par.knee_hinge:
+            J[:, np.arange(row, row + 4), _A0 + np.array(_KNEE_YZ)] = 1 / par.sigma_hinge_rad
+        return J
+
 
 def chain_points(geo: ChainGeometry, s: ChainState, jac: bool = False) -> dict[str, FloatArray]:
     """Joint and foot-point positions of a batch; with ``jac`` also the rotations it needs."""
@@ -224,58 +254,41 @@ def evaluate(
     step has the exact gradient.
     """
     par, geo = pb.params, pb.geo
-    B, n = s.t.shape[0], pb.n_params
+    B = s.t.shape[0]
     pts = chain_points(geo, s, jac)
     a = s.a.reshape(B, 18)
-    w_pj, w_pr, w_pt = (
-        1 / par.sigma_prior_joint_rad,
-        1 / par.sigma_prior_root_rad,
-        1 / par.sigma_prior_trans_m,
-    )
     r_root, Jinv = _root_terms(pb, s)
-    w_rot = np.stack([np.full(B, w_pr), pb.w_root_rot], axis=1)  # (B, 2)
     e_foot = pts["foot"] - pb.foot
     scale_foot, foot_cost = _foot_weights(pb, e_foot)
     blocks = [
-        w_pj * (a - pb.a_prior.reshape(B, 18)),
-        (w_rot[..., None] * r_root).reshape(B, 6),
-        w_pt * (s.t - pb.t_prior),
+        (a - pb.a_prior.reshape(B, 18)) / par.sigma_prior_joint_rad,
+        (pb.w_rot[..., None] * r_root).reshape(B, 6),
+        (s.t - pb.t_prior) / par.sigma_prior_trans_m,
         pb.w_root_pos[:, None] * (pts["p0"] - pb.p_meas),
         (scale_foot[..., None] * e_foot).reshape(B, 6),
     ]
     if not par.fixed_lengths:
         blocks.append((s.l - geo.lengths) / par.sigma_bone_m)
     if par.knee_hinge:
-        blocks.append(a[:, [7, 8, 10, 11]] / par.sigma_hinge_rad)  # knees' y, z
+        blocks.append(a[:, _KNEE_YZ] / par.sigma_hinge_rad)
     if par.rom_limits:
         below, above = np.minimum(a - pb.rom_lo, 0.0), np.maximum(a - pb.rom_hi, 0.0)
         blocks.append((below + above) / par.sigma_rom_rad)
     r = np.concatenate(blocks, axis=1)
-    n_sq = r.shape[1]
     cost = np.einsum("bi,bi->b", r, r)
     if par.robust_foot:
         cost = cost - np.einsum("bi,bi->b", r[:, 30:36], r[:, 30:36]) + foot_cost
     if not jac:
         return r, None, cost
-    J = np.zeros((B, n_sq, n))
-    J[:, np.arange(18), _A0 + np.arange(18)] = w_pj
-    J[:, 18:21, 0:3] = w_pr * Jinv[:, 0]
-    J[:, 21:24, 0:3] = pb.w_root_rot[:, None, None] * Jinv[:, 1]
-    J[:, np.arange(24, 27), np.arange(3, 6)] = w_pt
-    J[:, np.arange(27, 30), np.arange(3, 6)] = pb.w_root_pos[:, None]
+    J = pb.J_const.copy()
+    J[:, 18:24, 0:3] = (pb.w_rot[..., None, None] * Jinv).reshape(B, 6, 3)
     J[:, 30:36] = (
-        _foot_jacobian(pts, s, n).reshape(B, 6, n) * np.repeat(scale_foot, 3, axis=1)[..., None]
+        _foot_jacobian(pts, s, pb.n_params).reshape(B, 6, -1)
+        * np.repeat(scale_foot, 3, axis=1)[..., None]
     )
-    row = 36
-    if not par.fixed_lengths:
-        J[:, np.arange(row, row + 4), _L0 + np.arange(4)] = 1 / par.sigma_bone_m
-        row += 4
-    if par.knee_hinge:
-        J[:, np.arange(row, row + 4), _A0 + np.array([7, 8, 10, 11])] = 1 / par.sigma_hinge_rad
-        row += 4
     if par.rom_limits:
         outside = ((a < pb.rom_lo) | (a > pb.rom_hi)) / par.sigma_rom_rad
-        J[:, row + np.arange(18), _A0 + np.arange(18)] = outside
+        J[:, pb.n_residuals - 18 + _ROWS18, _A0 + _ROWS18] = outside
     return r, J, cost
 
 
