@@ -2,6 +2,10 @@
 
     python data/prepare_amass.py AMASS_ROOT data/amass_walking.npz
     python data/prepare_amass.py AMASS_ROOT out.npz --clip-list my_walks.txt --skip-broken
+    python data/prepare_amass.py AMASS_ROOT out.npz --include walk stand idle turn
+
+The last form also keeps the standing and transition clips around the walks (file names with
+"stand", "idle" or "turn"), which the predictor's training mix needs (docs/predictor.md).
 
 AMASS_ROOT holds the unpacked sub-datasets (CMU/, BMLrub/, KIT/, ...), SMPL+H G
 ``*_poses.npz`` or SMPL-X ``*_stageii.npz``. The split is by sub-dataset (test: BMLrub;

@@ -339,3 +339,20 @@ def test_rest_joints_travel_from_the_clip_into_the_prepared_file(tmp_path: Path)
     np.savez(with_rest, **{**dict(np.load(with_rest)), REST_JOINTS_KEY: np.zeros((3, 3))})
     with pytest.raises(AmassError, match=REST_JOINTS_KEY):
         read_amass_npz(with_rest)
+
+
+def test_standing_and_transition_clips_join_the_walks_by_keyword(tmp_path: Path) -> None:
+    rng = np.random.default_rng(4)
+    root = tmp_path / "amass"
+    poses, trans = walking_like_clip(61, 60.0, rng)
+    for rel in ("CMU/01/01_walk_poses.npz", "CMU/01/01_stand_poses.npz",
+                "CMU/02/02_turn_around_poses.npz", "HumanEva/S1/idle_poses.npz",
+                "CMU/03/03_stairs_walk_poses.npz"):  # fmt: skip
+        write_smplh_poses(root / rel, poses, trans, 60.0)
+    report = prepare_walking_subset(root, tmp_path / "w.npz")
+    assert report.n_clips == {"train": 1, "val": 0, "test": 0}  # walking only (no stairs)
+    report = prepare_walking_subset(
+        root, tmp_path / "all.npz", include=("walk", "stand", "idle", "turn")
+    )
+    # split by sub-dataset as the walks: CMU trains, HumanEva validates
+    assert report.n_clips == {"train": 3, "val": 1, "test": 0}

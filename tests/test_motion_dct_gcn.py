@@ -167,6 +167,27 @@ def test_last_pose_residual_keeps_a_still_input_exactly_still() -> None:
         assert (ours(moving)[:, 10:] - moving[:, -1:]).abs().max() > 1e-4
 
 
+def test_velocity_padding_known_answer_and_still_input() -> None:
+    """With zero weights the output is the padded input: the damped last step, eq. by hand."""
+    model = DCTGCN(
+        PredictorConfig(hidden=8, n_blocks=1, residual="last_pose", pad_velocity_decay=0.5)
+    )
+    _zero_parameters(model)
+    model.eval()
+    x = torch.cumsum(torch.full((1, 10, 21), 0.1), dim=1)  # each node moves 0.1 per frame
+    with torch.no_grad():
+        y = model(x)[0, 10:, 0]
+    expected = 1.0 + 0.1 * torch.tensor([0.5, 0.75, 0.875, 0.9375, 0.96875]).double()
+    torch.testing.assert_close(y[:5].double(), expected, atol=1e-6, rtol=0)
+    ours = _trained_like(PredictorConfig(hidden=16, n_blocks=2, residual="last_pose",
+                                         pad_velocity_decay=0.8))  # fmt: skip
+    still = torch.randn(5, 1, 21).expand(-1, 10, -1).contiguous()
+    with torch.no_grad():
+        assert torch.equal(ours(still), still[:, :1].expand(-1, 20, -1))
+    with pytest.raises(ValueError, match="pad_velocity_decay"):
+        PredictorConfig(pad_velocity_decay=1.5)
+
+
 def test_last_pose_residual_prediction_is_lipschitz_in_the_motion() -> None:
     """A nearly still input (sway) gives a nearly still prediction: the output moves away
     from the last pose by an amount proportional to the input's motion."""

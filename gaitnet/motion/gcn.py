@@ -28,6 +28,14 @@ net(input coefficients)), and the inverse DCT gives back ``n_past + n_future`` p
 ``dct_n = n_past + n_future`` (the thesis: depth 20 for 10 + 10) the basis is complete and no
 temporal smoothing happens; LTD used 15 for this setting. Both are supported.
 
+Padding with damped velocity (``pad_velocity_decay = γ > 0``). Instead of repeating the last
+observed pose ``c``, future frame ``k`` of the padded input is ``c + v Σ_{i=1..k} γ^i`` with
+``v`` the last observed step (``x_T − x_{T−1}`` per node): the network then corrects a damped
+constant-velocity guess rather than a standing one, so on motion unlike its training data it
+still continues what it sees for the first frames (``γ = 0.8``: the guess moves on by about
+3.6 steps in all and comes to rest within about 300 ms; constant velocity itself overshoots).
+A still input has ``v = 0``, so the guarantee below is kept.
+
 Still-input guarantee (``residual = "last_pose"``, the committed model's setting). LTD's
 global residual alone does not keep a still input still: the network adds
 ``gc7(blocks(gc1(x)))``, which is not zero for the coefficients of a constant sequence, so a
@@ -112,6 +120,9 @@ class PredictorConfig:
     #: ``"ltd"`` (LTD's global residual) or ``"last_pose"`` (a still input stays still exactly;
     #: module docstring)
     residual: str = "ltd"
+    #: Padding of the future frames: 0 repeats the last observed pose (LTD); ``γ`` in (0, 1]
+    #: continues the last step's motion, damped by ``γ`` per frame (module docstring)
+    pad_velocity_decay: float = 0.0
 
     #: Largest accepted value of each integer key (far above any useful size; guards against
     #: typos that would ask for terabytes).
@@ -128,6 +139,7 @@ class PredictorConfig:
         dropout = check_range("PredictorConfig.dropout", self.dropout, 0.0, 1.0)
         if dropout == 1.0:
             raise ValueError("PredictorConfig.dropout must be below 1 (1 drops every feature)")
+        check_range("PredictorConfig.pad_velocity_decay", self.pad_velocity_decay, 0.0, 1.0)
         if self.residual not in RESIDUALS:
             raise ValueError(
                 f"PredictorConfig.residual must be one of {list(RESIDUALS)}, got {self.residual!r}"
@@ -214,6 +226,12 @@ class DCTGCN(nn.Module):
         n, L = config.seq_len, config.dct_n
         pad_idx = list(range(config.n_past)) + [config.n_past - 1] * config.n_future
         self.register_buffer("pad_idx", torch.tensor(pad_idx, dtype=torch.long), persistent=False)
+        g = float(config.pad_velocity_decay)
+        steps = [0.0] * config.n_past + [sum(g**i for i in range(1, k + 1)) for k in
+                                         range(1, config.n_future + 1)]  # fmt: skip
+        self.register_buffer(
+            "pad_steps", torch.tensor(steps, dtype=torch.float32)[:, None], persistent=False
+        )
         # (4.2) keeps the first L coefficients: C = D[:L] x; (4.3) x = Dᵀ[:, :L] C.
         self.register_buffer("dct_m", dct_matrix_torch(n)[:L].contiguous(), persistent=False)
         self.register_buffer("idct_m", idct_matrix_torch(n)[:, :L].contiguous(), persistent=False)
@@ -230,8 +248,11 @@ class DCTGCN(nn.Module):
         self.act_f = nn.Tanh()
 
     def encode(self, past: torch.Tensor) -> torch.Tensor:
-        """Pad by repeating the last observed pose, then DCT: (B, n_past, N) → (B, N, dct_n)."""
+        """Pad (the last observed pose, plus the damped last step with ``pad_velocity_decay``),
+        then DCT: (B, n_past, N) → (B, N, dct_n)."""
         padded = past[:, self.pad_idx]  # (B, T, N)
+        if self.config.pad_velocity_decay > 0 and past.shape[1] >= 2:
+            padded = padded + self.pad_steps * (past[:, -1:] - past[:, -2:-1])
         return torch.matmul(self.dct_m, padded).transpose(1, 2)
 
     def decode(self, coeffs: torch.Tensor) -> torch.Tensor:

@@ -28,8 +28,8 @@ are reproduced.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, fields, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -43,7 +43,14 @@ from gaitnet.sim.subject import Subject
 if TYPE_CHECKING:
     from gaitnet.sim.amass_clips import SyntheticWalksConfig
 
-__all__ = ["CLIP_KINDS", "ClipMotion", "choose_kind", "clip_motion", "join_with_pause"]
+__all__ = [
+    "CLIP_KINDS",
+    "ClipMotion",
+    "choose_kind",
+    "clip_motion",
+    "join_with_pause",
+    "sample_gait_config",
+]
 
 #: Clip kinds, in the order of their ``mix_*`` weights.
 CLIP_KINDS: tuple[str, ...] = ("walk", "sharp_turn", "speed_change", "pause", "standing")
@@ -51,6 +58,7 @@ CLIP_KINDS: tuple[str, ...] = ("walk", "sharp_turn", "speed_change", "pause", "s
 SPEED_LIMITS_MPS = (0.6, 1.7)
 _BLEND_S = 0.5
 
+Band = tuple[float, float]
 Pose = tuple[np.ndarray, np.ndarray, np.ndarray]  # root_orient (T,3), trans (T,3), joint_aa
 
 
@@ -66,6 +74,58 @@ class ClipMotion:
     walk_length_m: float
     speed_change: float = 0.0
     pause_s: float = 0.0
+
+
+def _uniform_in_bands(rng: np.random.Generator, bands: Iterable[Band]) -> float:
+    """Uniform over the union of disjoint intervals (weighted by their widths)."""
+    bands = list(bands)
+    widths = np.array([hi - lo for lo, hi in bands])
+    u = float(rng.uniform(0.0, widths.sum()))
+    for (lo, _), w in zip(bands, widths, strict=True):
+        if u <= w:
+            return float(lo + u)
+        u -= float(w)
+    return float(bands[-1][1])
+
+
+def sample_gait_config(
+    rng: np.random.Generator, cfg: SyntheticWalksConfig, speed_bands: tuple[Band, ...]
+) -> GaitConfig:
+    """A random :class:`GaitConfig` for one walk (speed from ``speed_bands``).
+
+    Style parameters the installed generator does not have are left out (the simulator
+    evolves; the draws from ``rng`` stay the same either way).
+    """
+    turn = 0.0
+    if rng.uniform() < cfg.turn_probability:
+        turn = float(rng.uniform(*cfg.turn_range_deg)) * float(rng.choice([-1.0, 1.0]))
+    rng.uniform(0.58, 0.64)  # was the stance fraction: now the speed law's (kept: same draws)
+    heel_off = float(rng.uniform(0.34, 0.42))
+    values: dict[str, float] = {
+        "speed_mps": _uniform_in_bands(rng, speed_bands),
+        "walk_length_m": float(rng.uniform(*cfg.walk_length_range_m)),
+        "step_width_m": float(rng.uniform(0.06, 0.14)),
+        "step_length_cv": float(rng.uniform(*cfg.step_cv_range)),
+        "step_time_cv": float(rng.uniform(*cfg.step_cv_range)),
+        "step_width_std_m": float(rng.uniform(*cfg.step_width_std_range_m)),
+        "stand_start_s": float(rng.uniform(*cfg.stand_range_s)),
+        "stand_end_s": float(rng.uniform(*cfg.stand_range_s)),
+        "turn_deg": turn,
+        "toe_out_deg": float(rng.uniform(0.0, 10.0)),
+        # Style parameters, varied around the simulator's defaults where the generator has them.
+        "pelvis_vertical_m": float(rng.uniform(0.015, 0.025)),
+        "pelvis_lateral_m": float(rng.uniform(0.015, 0.025)),
+        "pelvis_rotation_deg": float(rng.uniform(3.0, 5.0)),
+        "pelvis_obliquity_deg": float(rng.uniform(3.0, 5.0)),
+        "pelvis_tilt_deg": float(rng.uniform(1.0, 3.0)),
+        "toe_clearance_m": float(rng.uniform(0.01, 0.02)),
+        "heel_strike_pitch_deg": float(rng.uniform(10.0, 15.0)),
+        "toe_off_pitch_deg": float(rng.uniform(30.0, 40.0)),
+        "heel_off_fraction": heel_off,
+        "min_heel_off_fraction": 0.30,
+    }
+    known = {f.name for f in fields(GaitConfig)}
+    return GaitConfig(**{k: v for k, v in values.items() if k in known})
 
 
 def choose_kind(rng: np.random.Generator, weights: dict[str, float]) -> str:
