@@ -58,6 +58,8 @@ from gaitnet.vio.gait import Stance
 __all__ = [
     "SIDES",
     "EventParams",
+    "check_points",
+    "check_times",
     "FootContact",
     "detect_events",
     "stances_from_contacts",
@@ -111,7 +113,8 @@ class FootContact:
     position: FloatArray
 
 
-def _times(t_s: ArrayLike) -> FloatArray:
+def check_times(t_s: ArrayLike) -> FloatArray:
+    """``t_s`` as a float array: 1-D, >= MIN_FRAMES times, finite, strictly increasing."""
     t = np.asarray(t_s, dtype=float)
     if t.ndim != 1 or t.size < MIN_FRAMES:
         raise InputError(
@@ -124,7 +127,8 @@ def _times(t_s: ArrayLike) -> FloatArray:
     return t
 
 
-def _points(value: ArrayLike, n: int, name: str) -> FloatArray:
+def check_points(value: ArrayLike, n: int, name: str) -> FloatArray:
+    """``value`` as an (n, 3) finite float array; ``name`` goes into the error."""
     p = np.asarray(value, dtype=float)
     if p.shape != (n, 3):
         raise InputError(f"{name}: expected shape ({n}, 3), got {p.shape}")
@@ -240,7 +244,7 @@ def detect_events(
     ``joints`` (n, 7, 3): pelvis, L_hip, R_hip, ... (docs/design.md); when given, toe off uses
     the foot's position relative to the pelvis (Zeni et al. 2008)."""
     p = params or EventParams()
-    t = _times(t_s)
+    t = check_times(t_s)
     n = t.size
     unknown = set(feet) - set(SIDES)
     if unknown or not feet:
@@ -259,7 +263,7 @@ def detect_events(
     for side in SIDES:
         if side not in feet:
             continue
-        foot = _points(feet[side], n, f"foot trajectory {side!r}")
+        foot = check_points(feet[side], n, f"foot trajectory {side!r}")
         foot_g = _lowpass(_resample(t, foot, grid), dt, p.cutoff_hz)
         offset = None
         if joints_g is not None:
