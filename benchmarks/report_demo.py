@@ -1,0 +1,152 @@
+"""The gait report of a simulated session built from its ground truth (docs/report.md).
+
+Runs the report stage alone on a ``gaitnet simulate`` session folder: the shoe-top markers of
+``groundtruth/feet.csv`` as the foot trajectories (frames where ``marker_pixels.csv`` marks the
+marker visible count as measured, the others as filled), the 7 joints of ``joints.npz``,
+sagittal joint angles from those positions (a geometric stand-in for the pipeline's angles:
+hip and knee flexion in the plane of the forward axis z × (L_hip − R_hip) and z, ankle
+dorsiflexion relative to the first frames' standing angle), gait events, stances and strides
+from the trajectories (no filter), the parameters, the figures and the HTML report. Prints the
+per-side summary next to the same parameters computed from the simulator's true events.
+
+    python benchmarks/report_demo.py SESSION --out /tmp/report_demo
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import time
+from pathlib import Path
+
+import numpy as np
+
+from gaitnet import __version__
+from gaitnet.pipeline.gait_events import SIDES, FootContact, detect_events, stances_from_contacts
+from gaitnet.pipeline.gait_parameters import (
+    PARAMETERS,
+    stride_parameters,
+    stride_table_csv,
+    summarise,
+)
+from gaitnet.pipeline.html_report import write_report
+from gaitnet.pipeline.plots import (
+    foot_trajectories_png,
+    gait_phases_png,
+    joint_angles_png,
+    top_view_png,
+    write_png,
+)
+from gaitnet.vio.gait import strides_from_stances
+
+
+def _angle(d: np.ndarray, forward: np.ndarray) -> np.ndarray:
+    """Sagittal angle [deg] of segment vectors d from straight down, positive forward."""
+    return np.degrees(np.arctan2(np.sum(d * forward, axis=-1), -d[..., 2]))
+
+
+def sagittal_angles(positions: np.ndarray) -> np.ndarray:
+    """(n, 6) hip, knee, ankle angles per side from joints.npz positions (9 joints)."""
+    lateral = positions[:, 1] - positions[:, 2]
+    forward = np.stack([lateral[:, 1], -lateral[:, 0], np.zeros(len(lateral))], axis=1)
+    forward /= np.linalg.norm(forward, axis=1, keepdims=True)
+    out = []
+    for hip, knee, ankle, foot in ((1, 3, 5, 7), (2, 4, 6, 8)):
+        thigh = _angle(positions[:, knee] - positions[:, hip], forward)
+        shank = _angle(positions[:, ankle] - positions[:, knee], forward)
+        foot_a = _angle(positions[:, foot] - positions[:, ankle], forward)
+        ankle_a = (foot_a - shank) - np.mean((foot_a - shank)[:10])
+        out += [thigh, thigh - shank, -ankle_a]
+    return np.stack(out, axis=1)
+
+
+def true_contacts(gt: Path) -> list[FootContact]:
+    rows = list(csv.DictReader((gt / "events.csv").open()))
+
+    def num(text: str) -> float | None:
+        return float(text) if text else None
+
+    return [
+        FootContact(
+            r["side"],
+            num(r["heel_strike_s"]),
+            num(r["toe_off_s"]),
+            float(r["flat_start_s"]),
+            float(r["flat_end_s"]),
+            np.array([float(r["sole_x_m"]), float(r["sole_y_m"]), 0.0]),
+        )
+        for r in rows
+    ]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("session", type=Path)
+    ap.add_argument("--out", type=Path, required=True)
+    args = ap.parse_args()
+    gt = args.session / "groundtruth"
+    rows = list(csv.DictReader((gt / "feet.csv").open()))
+    t_ns = np.array([int(r["t_ns"]) for r in rows])
+    t = t_ns * 1e-9
+    feet = {
+        s: np.array([[float(r[f"marker_{s}_{a}"]) for a in "xyz"] for r in rows]) for s in SIDES
+    }
+    visible = {
+        (int(r["t_ns"]), r["side"]): r["visible"] == "1"
+        for r in csv.DictReader((gt / "marker_pixels.csv").open())
+    }
+    measured = {s: np.array([visible.get((k, s), False) for k in t_ns]) for s in SIDES}
+    positions = np.load(gt / "joints.npz")["positions"]
+    joints = positions[:, :7]
+    angles = sagittal_angles(positions)
+
+    start = time.perf_counter()
+    contacts = detect_events(t, feet, joints)
+    stances = stances_from_contacts(contacts)
+    strides = strides_from_stances(stances)
+    params = stride_parameters(strides, contacts)
+    summary = summarise(params)
+    figures = [
+        (
+            "Foot trajectories (solid: marker visible, dashed: hidden)",
+            foot_trajectories_png(t, feet, measured),
+        ),
+        ("Walk seen from above", top_view_png(feet, stances, contacts)),
+        ("Joint angles over the gait cycle (mean ± SD)", joint_angles_png(t, angles, contacts)),
+        ("Stance and swing over time", gait_phases_png(contacts, float(t[0]), float(t[-1]))),
+    ]
+    args.out.mkdir(parents=True, exist_ok=True)
+    names = ("foot_trajectories", "top_view", "joint_angles", "gait_phases")
+    for name, (_, png) in zip(names, figures, strict=True):
+        write_png(args.out / f"{name}.png", png)
+    (args.out / "gait_strides.csv").write_text(stride_table_csv(params))
+    facts = {
+        "subject": f"simulated subject of {args.session.name}",
+        "session": str(args.session.name),
+        "duration [s]": float(t[-1] - t[0]),
+        "frames": len(t),
+        "device": "simulated RealSense D455 (ground-truth feet and joints)",
+        "software": f"gaitnet {__version__}",
+    }
+    report = write_report(args.out / "report.html", facts, summary, params, figures)
+    elapsed = time.perf_counter() - start
+    print(f"report: {report} ({report.stat().st_size / 1e3:.0f} kB, {elapsed:.2f} s)")
+
+    truth = summarise(stride_parameters(strides, true_contacts(gt)))
+    print(f"{'parameter':32s} {'left':>16s} {'right':>16s} {'true events L':>14s} {'R':>7s} SI %")
+    for key, label, unit in PARAMETERS:
+        cells = []
+        for side in SIDES:
+            s = summary[side].get(key)
+            cells.append(f"{s['mean']:.3f}±{s['sd']:.3f}" if s else "-")
+        true = [truth[side].get(key) for side in SIDES]
+        true_txt = [f"{x['mean']:.3f}" if x else "-" for x in true]
+        si = summary["symmetry_index_pct"].get(key)
+        print(
+            f"{label + ' [' + unit + ']':32s} {cells[0]:>16s} {cells[1]:>16s} "
+            f"{true_txt[0]:>14s} {true_txt[1]:>7s} {'' if si is None else f'{si:+.1f}'}"
+        )
+
+
+if __name__ == "__main__":
+    main()
