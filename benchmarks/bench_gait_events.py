@@ -21,7 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from gaitnet.pipeline.gait_events import SIDES, detect_events
+from gaitnet.pipeline.gait_events import SIDES, FootContact, detect_events, stances_from_contacts
+from gaitnet.pipeline.gait_parameters import stride_parameters
+from gaitnet.vio.gait import strides_from_stances
 
 SEVEN = [0, 1, 2, 3, 4, 5, 6]  # joints.npz positions: [0, 1, 2, 4, 5, 7, 8, 10, 11] → first 7
 TOLERANCE_S = 0.25
@@ -41,6 +43,43 @@ def load(session: Path) -> dict:
     points["ankle"] = {"left": positions[:, 5], "right": positions[:, 6]}
     events = list(csv.DictReader((gt / "events.csv").open()))
     return {"t": t, "points": points, "joints": positions, "events": events}
+
+
+def true_contacts(events: list[dict]) -> list[FootContact]:
+    """The simulator's stances (``events.csv`` rows) as foot contacts."""
+
+    def num(text: str) -> float | None:
+        return float(text) if text else None
+
+    return [
+        FootContact(
+            r["side"],
+            num(r["heel_strike_s"]),
+            num(r["toe_off_s"]),
+            float(r["flat_start_s"]),
+            float(r["flat_end_s"]),
+            np.array([float(r["sole_x_m"]), float(r["sole_y_m"]), 0.0]),
+        )
+        for r in events
+    ]
+
+
+PHASES = ("stance_pct", "double_support_pct")
+
+
+def phase_errors(contacts: list[FootContact], events: list[dict]) -> dict[str, list[float]]:
+    """Detected − true stance % and double support % of the steady strides between the true
+    stances (the same strides, phases from detected vs true events)."""
+    truth = true_contacts(events)
+    strides = strides_from_stances(stances_from_contacts(truth))
+    found = stride_parameters(strides, contacts)
+    true = stride_parameters(strides, truth)
+    out: dict[str, list[float]] = {k: [] for k in PHASES}
+    for a, b in zip(found, true, strict=True):
+        for k in PHASES:
+            if a.steady and a.values[k] is not None and b.values[k] is not None:
+                out[k].append(a.values[k] - b.values[k])
+    return out
 
 
 def match(true: list[float], found: list[float]) -> tuple[list[float | None], int, int]:
@@ -65,6 +104,7 @@ def evaluate(data: dict, kind: str, with_pelvis: bool, noise_m: float, rng) -> d
     joints = data["joints"] if with_pelvis else None
     contacts = detect_events(data["t"], feet, joints)
     out = {"ic": [], "to": [], "ic_steady": [], "missed": 0, "extra": 0}
+    out |= phase_errors(contacts, data["events"])
     for side in SIDES:
         ev = [e for e in data["events"] if e["side"] == side]
         for key, col, attr in (
@@ -118,9 +158,7 @@ def main() -> None:
             for name, d in data.items():
                 group = "selection" if name.startswith(tuple(args.select)) else "held out"
                 r = evaluate(d, kind, pelvis, noise * 1e-3, rng)
-                g = groups.setdefault(
-                    group, {"ic": [], "to": [], "ic_steady": [], "missed": 0, "extra": 0}
-                )
+                g = groups.setdefault(group, {k: 0 if k in ("missed", "extra") else [] for k in r})
                 for k in g:
                     g[k] += r[k]
             for group, g in sorted(groups.items()):
@@ -130,6 +168,12 @@ def main() -> None:
                 print("   " + line("IC", g["ic"]))
                 print("   " + line("IC", g["ic_steady"]) + " (steady steps)")
                 print("   " + line("TO", g["to"]))
+                for k in PHASES:
+                    e = np.asarray(g[k])
+                    print(
+                        f"   {k} error (steady strides, points of the cycle): n {e.size} "
+                        f"median {np.median(e):+.1f} p95|e| {np.percentile(abs(e), 95):.1f}"
+                    )
 
 
 if __name__ == "__main__":

@@ -20,9 +20,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+from bench_gait_events import true_contacts
 
 from gaitnet import __version__
-from gaitnet.pipeline.gait_events import SIDES, FootContact, detect_events, stances_from_contacts
+from gaitnet.pipeline.gait_events import SIDES, detect_events, stances_from_contacts
 from gaitnet.pipeline.gait_parameters import (
     PARAMETERS,
     stride_parameters,
@@ -58,25 +59,6 @@ def sagittal_angles(positions: np.ndarray) -> np.ndarray:
         ankle_a = (foot_a - shank) - np.mean((foot_a - shank)[:10])
         out += [thigh, thigh - shank, -ankle_a]
     return np.stack(out, axis=1)
-
-
-def true_contacts(gt: Path) -> list[FootContact]:
-    rows = list(csv.DictReader((gt / "events.csv").open()))
-
-    def num(text: str) -> float | None:
-        return float(text) if text else None
-
-    return [
-        FootContact(
-            r["side"],
-            num(r["heel_strike_s"]),
-            num(r["toe_off_s"]),
-            float(r["flat_start_s"]),
-            float(r["flat_end_s"]),
-            np.array([float(r["sole_x_m"]), float(r["sole_y_m"]), 0.0]),
-        )
-        for r in rows
-    ]
 
 
 def main() -> None:
@@ -132,7 +114,8 @@ def main() -> None:
     elapsed = time.perf_counter() - start
     print(f"report: {report} ({report.stat().st_size / 1e3:.0f} kB, {elapsed:.2f} s)")
 
-    truth = summarise(stride_parameters(strides, true_contacts(gt)))
+    events = list(csv.DictReader((gt / "events.csv").open()))
+    truth = summarise(stride_parameters(strides, true_contacts(events)))
     print(f"{'parameter':32s} {'left':>16s} {'right':>16s} {'true events L':>14s} {'R':>7s} SI %")
     for key, label, unit in PARAMETERS:
         cells = []
