@@ -51,6 +51,7 @@ from gaitnet.pipeline.pelvis_extrinsic import (  # noqa: E402
     standing_T_WfromP,
 )
 from gaitnet.pipeline.pose_correction import correct_pose, correct_poses  # noqa: E402
+from gaitnet.pipeline.pose_tracking import track_poses  # noqa: E402
 from gaitnet.pipeline.pose_types import (  # noqa: E402
     FrameMeasurements,
     PoseCorrectionParams,
@@ -357,6 +358,7 @@ def run_session(session: Path, args: argparse.Namespace, rng: np.random.Generato
             f"LM iterations (all): median {np.median(info.iterations):.0f}, "
             f"max {info.iterations.max()}"
         )
+    closed_loop(args.model, truth, skel, meas)
     if not lbfgs or args.lbfgs_frames <= 0:
         return
 
@@ -378,6 +380,39 @@ def run_session(session: Path, args: argparse.Namespace, rng: np.random.Generato
     pose, trans, wall, cpu = timed_per_frame(priors, m, skel, par)
     name = "LM, thesis objective (eq. 4.8, squared)"
     print(report(skel, truth, idx[sub], name, pose, trans, wall, cpu))
+
+
+def closed_loop(
+    model: Path,
+    truth: dict[str, np.ndarray],
+    skel: LowerBodySkeleton,
+    meas: list[FrameMeasurements],
+) -> None:
+    """The predict-correct loop over the whole session from 10 standing poses (rest pose at the
+    measured pelvis), as the pipeline runs it; MPJPE over the frames after the start."""
+    onnx = OnnxPredictor(model)
+    past = 10
+
+    def predict(window: np.ndarray) -> np.ndarray:
+        return onnx(window[None])[0, past]
+
+    start = []
+    for m in meas[:past]:
+        root = so3_log(m.R_WfromP @ R_PfromSMPL)
+        start.append(PoseState(np.r_[root, np.zeros(18)], m.p_PinW - skel.rest_joints[0]))
+    idx = np.arange(past, len(meas))
+    print(f"\nclosed loop: predictor → correction, frames {past}..{len(meas) - 1}")
+    print(HEADER)
+    runs = {
+        "predictor alone (no measurements)": ([FrameMeasurements()] * len(idx), None),
+        "LM, thesis objective (eq. 4.8, squared)": (meas[past:], PoseCorrectionParams.thesis()),
+        "all but contact weighting (the default)": (meas[past:], PoseCorrectionParams()),
+    }
+    for name, (m, par) in runs.items():
+        c0, w0 = time.process_time(), time.perf_counter()
+        out, priors = track_poses(predict, start, m, skel, par)
+        wall, cpu = (time.perf_counter() - w0) / len(idx), (time.process_time() - c0) / len(idx)
+        print(report(skel, truth, idx, name + " (with the predictor)", *stack(out), wall, cpu))
 
 
 if __name__ == "__main__":

@@ -157,7 +157,7 @@ def test_residual_jacobian_central_differences(fixed: bool, seed: int) -> None:
     pb, s = _random_problem(par, seed)
     r, J, _ = evaluate(pb, s)
     n = J.shape[2]
-    assert n == (24 if fixed else 28) and r.shape[1] == 36 + 4 + 18 + (0 if fixed else 4)
+    assert n == (24 if fixed else 28) and r.shape[1] == 36 + 4 + 18 + 4 + (0 if fixed else 4)
     h = 1e-6
     for k in range(n):
         d = np.zeros((1, n))
@@ -194,8 +194,8 @@ def test_robust_gradient_central_differences(fixed: bool) -> None:
 
 
 def test_pose_satisfying_every_measurement_stays_put() -> None:
-    par = PoseCorrectionParams()
-    out, info = correct_pose(TRUE, exact_measurements(TRUE, par, contact=[1, 0]), SKEL, par)
+    par = PoseCorrectionParams()  # no contact given: TRUE's feet are not flat
+    out, info = correct_pose(TRUE, exact_measurements(TRUE, par), SKEL, par)
     np.testing.assert_allclose(out.pose, TRUE.pose, atol=1e-9)
     np.testing.assert_allclose(out.trans, TRUE.trans, atol=1e-12)
     assert info.cost_before[0] == pytest.approx(0, abs=1e-18)
@@ -317,6 +317,31 @@ def test_contact_weighting_pulls_a_stance_foot_harder() -> None:
     assert np.all(dist[1.0] < 0.8 * dist[0.0])
 
 
+def test_flat_foot_contact_levels_a_stance_foot() -> None:
+    # The prior's right ankle is pitched 20° and rolled 10°; the right foot is in stance (contact
+    # 1) and measured: with the term its sole comes level (forward and left axes horizontal).
+    pose = TRUE.pose.copy()
+    pose[18:21] = np.radians([20.0, 0.0, 10.0])
+    prior = PoseState(pose, TRUE.trans)
+    m0 = exact_measurements(prior, PoseCorrectionParams())
+    tilt = {}
+    for on in (False, True):
+        par = PoseCorrectionParams(flat_foot_contact=on)
+        out, _ = correct_pose(
+            prior, FrameMeasurements(m0.R_WfromP, m0.p_PinW, m0.foot_W, [0, 1]), SKEL, par
+        )
+        geo = ChainGeometry.build(SKEL, par)
+        st = ChainState(
+            so3_exp(out.root_orient)[None], out.trans[None], out.joint_aa[None], geo.lengths[None]
+        )
+        G = chain_points(geo, st)["G_ank"][0]
+        tilt[on] = np.abs(G[:, 2, 0::2])  # world-up parts of left / forward axes, per side
+    assert tilt[False][1].max() > 0.1
+    assert tilt[True][1].max() < 0.2 * tilt[False][1].max()
+    # The left foot (no contact) keeps its tilt but for the shared root's small turn.
+    np.testing.assert_allclose(tilt[True][0], tilt[False][0], atol=0.05)
+
+
 def test_batch_equals_frame_by_frame_and_no_measurement_keeps_the_prior() -> None:
     rng = np.random.default_rng(9)
     par = PoseCorrectionParams()
@@ -374,6 +399,8 @@ CHANGES = {
     "contact_gain": 10.0,
     "marker_offset": False,
     "marker_offset_m": (0.0, 0.0, 0.12),
+    "flat_foot_contact": False,
+    "sigma_flat_rad": 0.5,
     "max_iterations": 1,
     "step_tolerance": 1.0,
     "cost_tolerance": 0.5,
@@ -410,7 +437,7 @@ def test_thesis_preset_switches_every_extension_off() -> None:
     par = PoseCorrectionParams.thesis()
     assert not any(
         [par.fixed_lengths, par.knee_hinge, par.rom_limits, par.robust_foot]
-        + [par.contact_weighting, par.marker_offset]
+        + [par.contact_weighting, par.marker_offset, par.flat_foot_contact]
     )
     assert PoseCorrectionParams.thesis(knee_hinge=True).knee_hinge
 

@@ -19,7 +19,14 @@ from gaitnet.segmentation.hha import HhaParams
 from gaitnet.segmentation.postprocess import FootKeypointParams
 from gaitnet.vio.config import VioConfig
 
-__all__ = ["REFERENCE_HEIGHT_M", "InferConfig", "ModelParams", "PipelineParams"]
+__all__ = [
+    "KEYPOINT_OFFSET_M",
+    "REFERENCE_HEIGHT_M",
+    "InferConfig",
+    "InferCorrectionParams",
+    "ModelParams",
+    "PipelineParams",
+]
 
 REFERENCE_HEIGHT_M = 1.70
 """Body height [m] for which the foot offsets (``correction.marker_offset_m``,
@@ -91,6 +98,16 @@ class PipelineParams:
 
 
 @dataclass(frozen=True)
+class InferCorrectionParams(PoseCorrectionParams):
+    """The pose correction's settings in ``gaitnet infer``: those of
+    :class:`~gaitnet.pipeline.pose_types.PoseCorrectionParams`, but the foot point is the
+    segmenter's keypoint, so ``marker_offset_m`` defaults to :data:`KEYPOINT_OFFSET_M` and is
+    given for a body of :data:`REFERENCE_HEIGHT_M` (scaled by the subject's height)."""
+
+    marker_offset_m: tuple[float, float, float] = KEYPOINT_OFFSET_M
+
+
+@dataclass(frozen=True)
 class InferConfig:
     """The whole ``gaitnet infer`` config (module docstring)."""
 
@@ -98,9 +115,6 @@ class InferConfig:
     models: ModelParams = field(default_factory=ModelParams)
     hha: HhaParams = field(default_factory=HhaParams)
     feet: FootKeypointParams = field(default_factory=FootKeypointParams)
-    correction: PoseCorrectionParams = field(
-        default_factory=lambda: PoseCorrectionParams(marker_offset_m=KEYPOINT_OFFSET_M)
-    )
-    """The correction (eq. 4.7–4.8); its ``marker_offset_m`` is the measured keypoint's offset
-    from the ankle at :data:`REFERENCE_HEIGHT_M`, scaled by the body height."""
+    correction: InferCorrectionParams = field(default_factory=lambda: InferCorrectionParams())
+    """The correction (eq. 4.7–4.8)."""
     pipeline: PipelineParams = field(default_factory=PipelineParams)

@@ -25,10 +25,11 @@ import logging
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
-from gaitnet.errors import SessionError
+from gaitnet.errors import InputError, SessionError
 from gaitnet.geometry import so3_exp, so3_log
 from gaitnet.io.types import SessionSource
 from gaitnet.motion.heading import normalise_heading
@@ -51,10 +52,22 @@ from gaitnet.vio.run import run_vio
 
 log = logging.getLogger(__name__)
 
-__all__ = ["InferResult", "run_infer"]
+__all__ = ["DEFAULT_PREDICTOR", "InferResult", "default_predictor_path", "run_infer"]
 
 Progress = Callable[[Iterable, int], Iterable]
 SIDES = ("left", "right")
+
+DEFAULT_PREDICTOR = "dctgcn_synthwalk_small.onnx"
+"""File name of the committed small motion predictor in the repository's ``models/predictor/``."""
+
+
+def default_predictor_path() -> Path:
+    """The committed small predictor (docs/predictor.md); an :class:`InputError` naming the path
+    when it is missing (an install without the repository's ``models/``)."""
+    path = Path(__file__).resolve().parents[2] / "models" / "predictor" / DEFAULT_PREDICTOR
+    if not path.is_file():
+        raise InputError(f"{path}: the default motion predictor is missing; give --predictor")
+    return path
 
 
 @dataclass

@@ -111,6 +111,7 @@ def _problem(
         w_foot=visible * (1.0 + gain * contact) / params.sigma_foot_m,
         rom_lo=rom[:, 0],
         rom_hi=rom[:, 1],
+        w_flat=contact / params.sigma_flat_rad,
         R_prior_meas_T=np.stack([R_prior, R_meas], axis=1).swapaxes(-1, -2).copy(),
     )
     state = ChainState(

@@ -20,7 +20,9 @@ Derivatives: a right perturbation ``Exp(ω)`` of joint k's local rotation turns 
 it about the joint by ``G_k ω`` (world), so ``∂p/∂ω = −[p − p_k]× G_k``; with axis-angle
 parameters ``ω = Jr(a) da`` (``so3_exp(a + da) ≈ so3_exp(a) Exp(Jr(a) da)``). A bone length
 moves the points below it along the posed bone: ``∂p/∂l = G_parent u``. The rotation residual
-``Log(R̃ᵀ R_root Exp(δ))`` has ``∂/∂δ = Jr⁻¹(r)`` at ``δ = 0``.
+``Log(R̃ᵀ R_root Exp(δ))`` has ``∂/∂δ = Jr⁻¹(r)`` at ``δ = 0``. The flat-foot residuals are
+world-up components ``e_zᵀ G_ank e_k`` of the ankle frame's left (k = x) and forward (k = z)
+axes; a world rotation ``φ`` upstream changes them by ``(G_ank e_k × e_z)ᵀ φ``.
 """
 
 from __future__ import annotations
@@ -172,6 +174,7 @@ class Problem:
     w_foot: FloatArray  # (B, 2) 0 where not seen, else (1 + gain c) / sigma
     rom_lo: FloatArray  # (18,) rad
     rom_hi: FloatArray  # (18,)
+    w_flat: FloatArray  # (B, 2) contact / sigma_flat_rad
     R_prior_meas_T: FloatArray  # (B, 2, 3, 3): [R̄ᵀ, R̃ᵀ]
 
     @property
@@ -181,7 +184,13 @@ class Problem:
     @cached_property
     def n_residuals(self) -> int:
         par = self.params
-        return 36 + 4 * (not par.fixed_lengths) + 4 * par.knee_hinge + 18 * par.rom_limits
+        return (
+            36
+            + 4 * (not par.fixed_lengths)
+            + 4 * par.knee_hinge
+            + 18 * par.rom_limits
+            + 4 * par.flat_foot_contact
+        )
 
     @cached_property
     def w_rot(self) -> FloatArray:
@@ -220,9 +229,9 @@ def chain_points(geo: ChainGeometry, s: ChainState, jac: bool = False) -> dict[s
     ankle = knee + s.l[:, 2:4, None] * d_shank
     G_ank = G_knee @ E[:, 4:6]
     foot = ankle + (G_ank @ geo.marker[..., None])[..., 0]
-    out = {"p0": p0, "hip": hip, "knee": knee, "ankle": ankle, "foot": foot}
+    out = {"p0": p0, "hip": hip, "knee": knee, "ankle": ankle, "foot": foot, "G_ank": G_ank}
     if jac:
-        out |= {"G_hip": G_hip, "G_knee": G_knee, "G_ank": G_ank, "Jr": Jr}
+        out |= {"G_hip": G_hip, "G_knee": G_knee, "Jr": Jr}
         out |= {"d_thigh": d_thigh, "d_shank": d_shank}
     return out
 
@@ -274,6 +283,8 @@ def evaluate(
     if par.rom_limits:
         below, above = np.minimum(a - pb.rom_lo, 0.0), np.maximum(a - pb.rom_hi, 0.0)
         blocks.append((below + above) / par.sigma_rom_rad)
+    if par.flat_foot_contact:
+        blocks.append((pb.w_flat[..., None] * _flat_residuals(pts)).reshape(B, 4))
     r = np.concatenate(blocks, axis=1)
     cost = np.einsum("bi,bi->b", r, r)
     if par.robust_foot:
@@ -286,40 +297,62 @@ def evaluate(
         _foot_jacobian(pts, s, pb.n_params).reshape(B, 6, -1)
         * np.repeat(scale_foot, 3, axis=1)[..., None]
     )
+    row = 36 + 4 * (not par.fixed_lengths) + 4 * par.knee_hinge
     if par.rom_limits:
         outside = ((a < pb.rom_lo) | (a > pb.rom_hi)) / par.sigma_rom_rad
-        J[:, pb.n_residuals - 18 + _ROWS18, _A0 + _ROWS18] = outside
+        J[:, row + _ROWS18, _A0 + _ROWS18] = outside
+        row += 18
+    if par.flat_foot_contact:
+        Jflat = _flat_jacobian(pts, s, pb.n_params) * pb.w_flat[..., None, None]
+        J[:, row : row + 4] = Jflat.reshape(B, 4, -1)
     return r, J, cost
 
 
-def _foot_jacobian(pts: dict[str, FloatArray], s: ChainState, n: int) -> FloatArray:
-    """∂(foot point)/∂(parameters): (B, 2, 3, n)."""
-    B = s.t.shape[0]
-    f = pts["foot"]
-    Jf = np.zeros((B, 2, 3, n))
-    Jf[..., 0:3] = -_skew(f - pts["p0"][:, None]) @ s.R0[:, None]
-    Jf[..., 3:6] = _EYE3
+def _chain_jacobian(
+    pts: dict[str, FloatArray], s: ChainState, n: int, A_root: FloatArray, A: FloatArray
+) -> FloatArray:
+    """Jacobian (B, 2, m, n) of per-side quantities whose derivative with respect to a world
+    rotation ``φ`` at the root is ``A_root φ`` (A_root (B, 2, m, 3)) and at hip, knee, ankle is
+    ``A[:, :, level] φ`` (A (B, 2, 3, m, 3)); translation and lengths are left at zero."""
+    B, m = s.t.shape[0], A_root.shape[2]
+    Jq = np.zeros((B, 2, m, n))
+    Jq[..., 0:3] = A_root @ s.R0[:, None]
     # Levels hip, knee, ankle: (B, side, level, 3, 3); Jr rows are ordered (level, side).
     G = np.stack([pts["G_hip"], pts["G_knee"], pts["G_ank"]], axis=2)
     Jr = pts["Jr"].reshape(B, 3, 2, 3, 3).swapaxes(1, 2)
-    lever = f[:, :, None] - np.stack([pts["hip"], pts["knee"], pts["ankle"]], axis=2)
-    block = -_skew(lever) @ G @ Jr  # (B, side, level, 3 rows, 3 components)
-    Ja = Jf[..., _A0:_L0].view()
-    Ja.shape = (
-        B,
-        2,
-        3,
-        3,
-        2,
-        3,
-    )  # a view of Jf (raises otherwise): (B, side, row, level, side', comp)
+    block = A @ G @ Jr  # (B, side, level, m rows, 3 components)
+    Ja = Jq[..., _A0:_L0].view()
+    Ja.shape = (B, 2, m, 3, 2, 3)  # a view of Jq (raises otherwise): side, row, level, side', comp
     for side in (0, 1):
         Ja[:, side, :, :, side, :] = block[:, side].swapaxes(1, 2)
+    return Jq
+
+
+def _foot_jacobian(pts: dict[str, FloatArray], s: ChainState, n: int) -> FloatArray:
+    """∂(foot point)/∂(parameters): (B, 2, 3, n); ``∂p/∂φ = −[p − p_k]×`` at each joint."""
+    f = pts["foot"]
+    lever = f[:, :, None] - np.stack([pts["hip"], pts["knee"], pts["ankle"]], axis=2)
+    Jf = _chain_jacobian(pts, s, n, -_skew(f - pts["p0"][:, None]), -_skew(lever))
+    Jf[..., 3:6] = _EYE3
     if n > N_BASE_PARAMS:
         for side in (0, 1):
             Jf[:, side, :, _L0 + side] = pts["d_thigh"][:, side]
             Jf[:, side, :, _L0 + 2 + side] = pts["d_shank"][:, side]
     return Jf
+
+
+def _flat_residuals(pts: dict[str, FloatArray]) -> FloatArray:
+    """World-up components of the ankle frames' left and forward axes (B, 2, 2): 0 when flat."""
+    return pts["G_ank"][:, :, 2, 0::2]
+
+
+def _flat_jacobian(pts: dict[str, FloatArray], s: ChainState, n: int) -> FloatArray:
+    """∂(flat residuals)/∂(parameters): (B, 2, 2, n), rows ``(G_ank e_k × e_z)ᵀ`` per level."""
+    axes = pts["G_ank"][..., :, 0::2].swapaxes(-1, -2)  # (B, 2, 2, 3): G e_x, G e_z
+    rows = np.cross(axes, _EYE3[2])
+    return _chain_jacobian(
+        pts, s, n, rows, np.broadcast_to(rows[:, :, None], (*rows.shape[:2], 3, 2, 3))
+    )
 
 
 def retract(s: ChainState, step: FloatArray) -> ChainState:

@@ -154,6 +154,8 @@ class PoseCorrectionParams:
     contact_weighting: bool = False
     contact_gain: float = 2.0
     marker_offset: bool = True
+    flat_foot_contact: bool = True
+    sigma_flat_rad: float = 0.05
     marker_offset_m: tuple[float, float, float] = (0.0, -0.012, 0.078)
     max_iterations: int = 10
     step_tolerance: float = 1e-5
@@ -195,6 +197,7 @@ class PoseCorrectionParams:
             robust_foot=False,
             contact_weighting=False,
             marker_offset=False,
+            flat_foot_contact=False,
         )
         base.update(overrides)
         return cls(**base)  # type: ignore[arg-type]

@@ -1,0 +1,140 @@
+"""The files of a ``gaitnet infer`` result folder (docs/pipeline.md, *Outputs*).
+
+- ``joints.npz``: ``t_ns`` (n,), ``positions`` (n, 9, 3) world positions of SMPL joints
+  ``smpl_indices`` [0, 1, 2, 4, 5, 7, 8, 10, 11] (``joint_names``; the layout of a simulated
+  session's ``groundtruth/joints.npz``, which ``gaitnet evaluate`` reads), ``poses`` (n, 21)
+  the corrected poses in the predictor's node layout, ``trans`` (n, 3) the SMPL translation,
+  ``angles_deg`` (n, 6) sagittal joint angles (``angle_names``);
+- ``joints.csv``: the same per frame as text (time, joint positions, angles);
+- ``feet.csv``: ``t_ns``, ``marker_{left,right}_{x,y,z}`` the gap-free shoe-marker
+  trajectories (world), ``measured_{left,right}`` 1 where the segmenter saw the foot (0: filled
+  by prediction), ``contact_{left,right}`` the filter's stance flags;
+- ``foot_left.tum``, ``foot_right.tum``: the marker trajectories as TUM (identity
+  orientation), ``camera_frames.tum`` the smoothed camera, ``pelvis_frames.tum`` the corrected
+  pelvis (SMPL joint 0 with the pelvis axes x forward, y left, z up);
+- ``strides.csv``: the filter's strides (:data:`gaitnet.vio.gait.STRIDE_COLUMNS`);
+- ``summary.json``: session facts, models, skeleton, extrinsic, timings.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+
+from gaitnet.geometry import so3_exp
+from gaitnet.io.trajectory import tum_text
+from gaitnet.motion.skeleton import JOINT_NAMES, SMPL_JOINT_INDICES
+from gaitnet.pipeline.infer import InferResult
+from gaitnet.pipeline.joint_angles import ANGLE_NAMES, sagittal_angles_deg
+from gaitnet.pipeline.pose_types import R_PfromSMPL
+from gaitnet.vio.gait import STRIDE_COLUMNS
+
+__all__ = ["result_summary", "write_infer_files"]
+
+SIDES = ("left", "right")
+
+
+def _csv(columns: list[str], rows: list[list[object]]) -> str:
+    text = io.StringIO()
+    writer = csv.writer(text, lineterminator="\n")
+    writer.writerow(columns)
+    writer.writerows(rows)
+    return text.getvalue()
+
+
+def _feet_csv(r: InferResult) -> str:
+    cols = ["t_ns"] + [f"marker_{s}_{a}" for s in SIDES for a in "xyz"]
+    cols += [f"measured_{s}" for s in SIDES] + [f"contact_{s}" for s in SIDES]
+    rows = []
+    for k in range(len(r.t_s)):
+        row: list[object] = [int(r.t_ns[k])]
+        row += [f"{v:.5f}" for v in r.feet_W[k].ravel()]
+        row += [int(v) for v in r.foot_measured[k]] + [int(v) for v in r.contact[k]]
+        rows.append(row)
+    return _csv(cols, rows)
+
+
+def _joints_csv(r: InferResult, angles: np.ndarray) -> str:
+    cols = ["t_s"] + [f"{name}_{a}" for name in JOINT_NAMES for a in "xyz"] + list(ANGLE_NAMES)
+    rows = [
+        [f"{r.t_s[k]:.6f}"]
+        + [f"{v:.5f}" for v in r.joints_W[k].ravel()]
+        + [f"{v:.2f}" for v in angles[k]]
+        for k in range(len(r.t_s))
+    ]
+    return _csv(cols, rows)
+
+
+def _pelvis_poses(r: InferResult) -> np.ndarray:
+    T = np.tile(np.eye(4), (len(r.t_s), 1, 1))
+    T[:, :3, :3] = so3_exp(r.poses[:, :3]) @ R_PfromSMPL.T
+    T[:, :3, 3] = r.joints_W[:, 0]
+    return T
+
+
+def _point_poses(p: np.ndarray) -> np.ndarray:
+    T = np.tile(np.eye(4), (len(p), 1, 1))
+    T[:, :3, 3] = p
+    return T
+
+
+def result_summary(r: InferResult, session_facts: dict[str, object]) -> dict[str, object]:
+    """The facts ``summary.json`` holds (also the report's header)."""
+    seen = r.foot_measured.mean(axis=0)
+    return {
+        "session": session_facts,
+        "frames": int(len(r.t_s)),
+        "duration_s": float(r.t_s[-1] - r.t_s[0]) if len(r.t_s) > 1 else 0.0,
+        "models": {"segmenter": r.segmenter_path, "predictor": r.predictor_path},
+        "subject_height_m": r.subject_height_m,
+        "bone_lengths_m": {
+            "thigh": [float(v) for v in r.skeleton.thigh_lengths],
+            "shank": [float(v) for v in r.skeleton.shank_lengths],
+        },
+        "standing_frames": r.standing_frames,
+        "extrinsic": {
+            "T_PfromC": r.extrinsic.T_PfromC.tolist(),
+            "spread_pos_m": r.extrinsic.spread_pos_m,
+            "spread_rot_rad": r.extrinsic.spread_rot_rad,
+        },
+        "feet_measured_fraction": {s: float(v) for s, v in zip(SIDES, seen, strict=True)},
+        "correction_iterations_mean": float(r.correction_iterations.mean()),
+        "seconds": r.timings_s,
+    }
+
+
+def write_infer_files(r: InferResult, stage: Path, session_facts: dict[str, object]) -> None:
+    """Write the files of the module docstring into the folder ``stage``."""
+    angles = sagittal_angles_deg(r.poses[:, 3:].reshape(-1, 6, 3))
+    with open(stage / "joints.npz", "wb") as f:
+        np.savez(
+            f,
+            t_ns=r.t_ns,
+            positions=r.joints_W,
+            smpl_indices=np.array(SMPL_JOINT_INDICES),
+            joint_names=np.array(JOINT_NAMES),
+            poses=r.poses,
+            trans=r.trans,
+            angles_deg=angles,
+            angle_names=np.array(ANGLE_NAMES),
+        )
+    (stage / "joints.csv").write_text(_joints_csv(r, angles))
+    (stage / "feet.csv").write_text(_feet_csv(r))
+    for i, side in enumerate(SIDES):
+        (stage / f"foot_{side}.tum").write_text(
+            tum_text(r.t_s, _point_poses(r.feet_W[:, i]), f"gaitnet infer: {side} shoe marker")
+        )
+    (stage / "camera_frames.tum").write_text(
+        tum_text(r.vio.t_s, r.vio.T_WfromC, "gaitnet infer: colour camera, smoothed")
+    )
+    (stage / "pelvis_frames.tum").write_text(
+        tum_text(r.t_s, _pelvis_poses(r), "gaitnet infer: pelvis (x forward, y left, z up)")
+    )
+    stride_rows = [[s.row()[c] for c in STRIDE_COLUMNS] for s in r.vio.strides]
+    (stage / "strides.csv").write_text(_csv(list(STRIDE_COLUMNS), stride_rows))
+    summary = result_summary(r, session_facts)
+    (stage / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")
