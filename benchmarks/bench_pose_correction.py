@@ -404,7 +404,10 @@ def closed_loop(
     print(f"\nclosed loop: predictor → correction, frames {past}..{len(meas) - 1}")
     print(HEADER)
     runs = {
-        "predictor alone (no measurements)": ([FrameMeasurements()] * len(idx), None),
+        "pelvis only, no feet (default params)": (
+            [FrameMeasurements(m.R_WfromP, m.p_PinW) for m in meas[past:]],
+            PoseCorrectionParams(),
+        ),
         "LM, thesis objective (eq. 4.8, squared)": (meas[past:], PoseCorrectionParams.thesis()),
         "all but contact weighting (the default)": (meas[past:], PoseCorrectionParams()),
     }
@@ -412,7 +415,7 @@ def closed_loop(
         c0, w0 = time.process_time(), time.perf_counter()
         out, priors = track_poses(predict, start, m, skel, par)
         wall, cpu = (time.perf_counter() - w0) / len(idx), (time.process_time() - c0) / len(idx)
-        print(report(skel, truth, idx, name + " (with the predictor)", *stack(out), wall, cpu))
+        print(report(skel, truth, idx, name, *stack(out), wall, cpu))
 
 
 if __name__ == "__main__":

@@ -17,6 +17,7 @@ from gaitnet.geometry import (
     so3_right_jacobian_inv,
 )
 from gaitnet.motion import builtin_skeleton, forward_kinematics
+from gaitnet.motion.heading import normalise_heading
 from gaitnet.pipeline.pelvis_extrinsic import (
     estimate_T_PfromC,
     pelvis_from_camera,
@@ -37,6 +38,7 @@ from gaitnet.pipeline.pose_residuals import (
     log_and_right_jacobian_inv,
     retract,
 )
+from gaitnet.pipeline.pose_tracking import denormalise_root, track_poses
 from gaitnet.pipeline.pose_types import (
     FrameMeasurements,
     PoseCorrectionParams,
@@ -530,3 +532,43 @@ def test_extrinsic_bad_input() -> None:
         standing_T_WfromP(SKEL, np.zeros((2, 3)), None, yaw_from="camera")
     with pytest.raises(InputError):
         standing_T_WfromP(SKEL, np.zeros((2, 3)), np.eye(4), yaw_from="up")  # type: ignore[arg-type]
+
+
+# --- predict-correct loop -------------------------------------------------------------------
+
+
+def test_denormalise_root_undoes_heading_normalisation() -> None:
+    rng = np.random.default_rng(11)
+    root = np.stack([so3_log(so3_exp([0, 0, y]) @ R_PfromSMPL) for y in rng.uniform(-3, 3, 5)])
+    trans = rng.normal(size=(5, 3))
+    root_n, _, yaw = normalise_heading(root, trans, 4)
+    np.testing.assert_allclose(
+        so3_exp(denormalise_root(root_n[4], yaw)), so3_exp(root[4]), atol=1e-12
+    )
+
+
+def test_track_poses_known_answers() -> None:
+    # A constant-pose predictor (returns the last normalised pose) and exact measurements of a
+    # body walking at constant velocity: every prior and every corrected pose is the truth.
+    par = PoseCorrectionParams()
+    v = np.array([0.04, 0.01, 0.0])
+    truth = [PoseState(TRUE.pose, TRUE.trans + k * v) for k in range(8)]
+    seen = []
+
+    def last(window: np.ndarray) -> np.ndarray:
+        seen.append(window.shape)
+        return window[-1]
+
+    out, priors = track_poses(
+        last, truth[:3], [exact_measurements(p, par) for p in truth[3:]], SKEL, par
+    )
+    assert seen == [(3, 21)] * 5
+    for o, p, t in zip(out, priors, truth[3:], strict=True):
+        np.testing.assert_allclose(so3_exp(p.root_orient), so3_exp(t.root_orient), atol=1e-9)
+        np.testing.assert_allclose(p.trans, t.trans, atol=1e-12)  # constant-velocity prior
+        np.testing.assert_allclose(o.pose, t.pose, atol=1e-8)
+        np.testing.assert_allclose(o.trans, t.trans, atol=1e-9)
+    with pytest.raises(InputError):
+        track_poses(last, truth[:1], [], SKEL, par)
+    with pytest.raises(InputError):
+        track_poses(lambda w: np.zeros(5), truth[:3], [FrameMeasurements()], SKEL, par)
