@@ -24,6 +24,7 @@ import pytest
 from gaitnet.cli import build_parser
 from gaitnet.config import config_keys
 from gaitnet.io.types import SessionCalibration
+from gaitnet.pipeline.config import InferConfig
 from gaitnet.sim.config import SimConfig
 from gaitnet.training.predictor import PredictorTrainingConfig
 from gaitnet.vio.config import VioConfig
@@ -41,8 +42,14 @@ CONFIG_SECTIONS: dict[str, type] = {
     "## Motion predictor training": PredictorTrainingConfig,
     "## Visual-inertial filter": VioConfig,
     "## Recorded session": SessionCalibration,
+    "## Inference": InferConfig,
 }
-EXTRA_ROWS = {SessionCalibration: {"format_version": ("int", "required")}}
+EXTRA_ROWS = {
+    SessionCalibration: {"format_version": ("int", "required")},
+    InferConfig: {"vio": ("mapping", "(section)")},
+}
+#: Sub-trees documented in another section: (config, prefix) → that section.
+DOCUMENTED_ELSEWHERE = {(InferConfig, "vio."): "## Visual-inertial filter"}
 
 
 def type_text(tp: Any) -> str:
@@ -96,7 +103,10 @@ def default_text(field: dataclasses.Field) -> str:
 def config_rows(cls: type) -> dict[str, tuple[str, str]]:
     """``key → (type, default)`` of every key of a config dataclass tree (config_keys order)."""
     rows: dict[str, tuple[str, str]] = dict(EXTRA_ROWS.get(cls, {}))
+    elsewhere = tuple(prefix for owner, prefix in DOCUMENTED_ELSEWHERE if owner is cls)
     for key in config_keys(cls):
+        if key.startswith(elsewhere or ("\0",)):
+            continue
         parts = key.split(".")
         owner = cls
         for part in parts[:-1]:

@@ -43,6 +43,7 @@ from gaitnet.cli.commands import (
     _cmd_check,
     _cmd_convert,
     _cmd_evaluate,
+    _cmd_infer,
     _cmd_segment,
     _cmd_simulate,
     _cmd_simulate_dataset,
@@ -210,6 +211,37 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.set_defaults(func=_cmd_segment)
+
+    p = sub.add_parser(
+        "infer",
+        help="the whole pipeline: trajectory, feet, lower-body pose, gait parameters",
+        description="Run the filter and smoother, the segmenter, the motion predictor and the "
+        "pose correction on a session folder or .bag and write joints, gap-free foot "
+        "trajectories, strides and a summary (docs/pipeline.md).",
+    )
+    p.add_argument("session", metavar="SESSION", help="session folder or RealSense .bag file")
+    p.add_argument("--out", metavar="DIR", type=_output_folder, required=True, help="output folder")
+    p.add_argument(
+        "--segmenter",
+        metavar="X.onnx",
+        default=None,
+        help="segmenter ONNX (default: models.segmenter, else the committed small fusion model)",
+    )
+    p.add_argument(
+        "--predictor",
+        metavar="Y.onnx",
+        default=None,
+        help="motion predictor ONNX (default: models.predictor, else the committed small model)",
+    )
+    p.add_argument(
+        "--config", metavar="FILE", default=None, help="YAML inference config (default: built-in)"
+    )
+    p.add_argument(
+        "--save-labels", action="store_true", help="also write every frame's label map (labels/)"
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides")
+    p.set_defaults(func=_cmd_infer)
 
     return parser
 

@@ -201,3 +201,82 @@ def _cmd_segment(args: argparse.Namespace) -> int:
     )
     print(f"wrote {result.path} (labels/, keypoints.csv, contact_sheet.png, summary.json)")
     return 0
+
+
+def _cmd_infer(args: argparse.Namespace) -> int:
+    import time
+
+    from gaitnet.config import dump_config, load_config
+    from gaitnet.io import open_session
+    from gaitnet.io.atomic import StagedFolder, check_output_folder
+    from gaitnet.io.images import encode_png
+    from gaitnet.motion.onnx_runtime import OnnxPredictor
+    from gaitnet.pipeline.config import InferConfig
+    from gaitnet.pipeline.infer import default_predictor_path, run_infer
+    from gaitnet.pipeline.outputs import write_infer_files
+    from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
+    from gaitnet.segmentation.segment_session import default_segmenter_path
+
+    cfg = load_config(InferConfig, args.config, args.overrides)
+    check_output_folder(args.out, args.overwrite)
+    session = open_session(args.session)
+    threads = cfg.models.threads
+    segmenter = OnnxSegmenter(
+        args.segmenter or cfg.models.segmenter or default_segmenter_path(), threads=threads
+    )
+    predictor = OnnxPredictor(
+        args.predictor or cfg.models.predictor or default_predictor_path(), threads=threads
+    )
+    stage = StagedFolder(args.out, args.overwrite)
+    try:
+        if args.save_labels:
+            (stage.path / "labels").mkdir()
+
+        def keep(t_ns: int, labels: np.ndarray) -> None:
+            (stage.path / "labels" / f"{t_ns}.png").write_bytes(encode_png(labels))
+
+        start = time.perf_counter()
+        result = run_infer(
+            session,
+            cfg,
+            segmenter,
+            predictor,
+            progress=lambda stage_name: (
+                lambda it, total: tqdm(it, total=total, desc=stage_name, unit="frame")
+            ),
+            keep_labels=keep if args.save_labels else None,
+        )
+        wall = time.perf_counter() - start
+        facts = {
+            "path": str(args.session),
+            "device": session.calibration.device,
+            "frames_in_session": len(session),
+        }
+        write_infer_files(result, stage.path, facts)
+        (stage.path / "infer_config.yaml").write_text(dump_config(cfg))
+        out = stage.commit()
+    except BaseException:
+        stage.abort()
+        raise
+    n = len(result.t_s)
+    seen = result.foot_measured.mean(axis=0)
+    print(
+        f"{n} frames ({result.t_s[-1] - result.t_s[0]:.1f} s) in {wall:.1f} s "
+        f"({n / wall:.1f} frames/s): "
+        + ", ".join(f"{k} {v:.1f} s" for k, v in result.timings_s.items())
+    )
+    print(
+        f"body height {result.subject_height_m:.2f} m; feet seen in {100 * seen[0]:.0f} % (left) "
+        f"/ {100 * seen[1]:.0f} % (right) of frames, the rest filled by prediction"
+    )
+    for side in ("left", "right"):
+        lengths = [s.length_m for s in result.vio.strides if s.side == side and s.steady]
+        if lengths:
+            print(
+                f"{side:5s} stride length {np.mean(lengths):.3f} ± {np.std(lengths):.3f} m over "
+                f"{len(lengths)} steady strides"
+            )
+        else:
+            print(f"{side:5s} no steady stride")
+    print(f"wrote {out} (joints.npz, feet.csv, strides.csv, summary.json, ...)")
+    return 0

@@ -26,6 +26,7 @@ __all__ = [
     "InferCorrectionParams",
     "ModelParams",
     "PipelineParams",
+    "UNUSED_KEYS",
 ]
 
 REFERENCE_HEIGHT_M = 1.70
@@ -38,6 +39,19 @@ KEYPOINT_OFFSET_M = (0.0, -0.019, 0.116)
 axes, at :data:`REFERENCE_HEIGHT_M`): measured with true label maps on the tuning session
 S1_5m_t1 (seed 1000), stance frames: 10.6 cm forward and 1.8 cm below the ankle for its 1.54 m
 subject."""
+
+
+UNUSED_KEYS = (
+    "hha.floor",
+    "hha.no_imu_pitch_deg",
+    "hha.no_imu_max_angle_deg",
+    "hha.lowest_point_percentile",
+    "feet.use_floor",
+    "feet.floor",
+)
+"""Keys of the shared sections that mean nothing in ``gaitnet infer``: the floor fit and the
+no-IMU fallbacks (the filter gives every frame's floor and gravity); refused unless at their
+defaults."""
 
 
 @dataclass(frozen=True)
@@ -118,3 +132,13 @@ class InferConfig:
     correction: InferCorrectionParams = field(default_factory=lambda: InferCorrectionParams())
     """The correction (eq. 4.7–4.8)."""
     pipeline: PipelineParams = field(default_factory=PipelineParams)
+
+    def __post_init__(self) -> None:
+        defaults = {"hha": HhaParams(), "feet": FootKeypointParams()}
+        for key in UNUSED_KEYS:
+            section, name = key.split(".")
+            if getattr(getattr(self, section), name) != getattr(defaults[section], name):
+                raise ValueError(
+                    f"{key} has no effect in gaitnet infer (the filter gives the floor and "
+                    "gravity); leave it at its default"
+                )

@@ -246,5 +246,5 @@ def default_segmenter_path() -> Path:
     path when it is missing (an install without the repository's ``models/``)."""
     path = Path(__file__).resolve().parents[2] / "models" / "segmenter" / DEFAULT_SEGMENTER
     if not path.is_file():
-        raise InputError(f"{path}: the default segmenter is missing; give --model X.onnx")
+        raise InputError(f"{path}: the default segmenter is missing; give a segmenter .onnx file")
     return path

@@ -1,0 +1,127 @@
+"""``gaitnet infer`` (gaitnet.pipeline): the result folder's files agree with each other and with
+an independent forward kinematics, the evaluation reads them, config keys act, and the joining
+helpers give known answers."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from gaitnet.cli import main
+from gaitnet.geometry import so3_exp
+from gaitnet.io import open_session
+from gaitnet.motion.skeleton import builtin_skeleton, forward_kinematics
+from gaitnet.pipeline.config import InferConfig, PipelineParams
+from gaitnet.pipeline.foot_points import floor_in_camera
+from gaitnet.pipeline.infer import _contact, _standing_frames
+from gaitnet.segmentation.fcn import build_segmenter
+from gaitnet.segmentation.onnx_runtime import export_segmenter_onnx
+from gaitnet.vio.result import StanceFoot
+
+
+@pytest.fixture(scope="module")
+def tiny_segmenter(tmp_path_factory, tiny_sim_session: Path) -> Path:
+    calib = open_session(tiny_sim_session).calibration
+    torch.manual_seed(1)
+    model = build_segmenter("fusion", width=1 / 16).eval()
+    with torch.no_grad():
+        for name, p in model.named_parameters():
+            if "score" in name:
+                p.normal_(0.0, 0.5)
+    path = tmp_path_factory.mktemp("inf") / "seg.onnx"
+    export_segmenter_onnx(model, path, height=calib.color.height, width=calib.color.width)
+    return path
+
+
+@pytest.fixture(scope="module")
+def inferred(tmp_path_factory, tiny_sim_session: Path, tiny_segmenter: Path) -> Path:
+    out = tmp_path_factory.mktemp("inf") / "out"
+    args = ["infer", str(tiny_sim_session), "--out", str(out), "--segmenter", str(tiny_segmenter)]
+    assert main([*args, "--save-labels", "pipeline.subject_height_m=1.7"]) == 0
+    return out
+
+
+def test_files_agree_with_forward_kinematics(inferred: Path, tiny_sim_session: Path) -> None:
+    data = np.load(inferred / "joints.npz")
+    n = len(data["t_ns"])
+    assert data["positions"].shape == (n, 9, 3) and np.all(np.isfinite(data["positions"]))
+    skel = builtin_skeleton(1.7)  # pipeline.subject_height_m acts: the skeleton is this one
+    aa = np.concatenate([data["poses"][:, 3:].reshape(n, 6, 3), np.zeros((n, 2, 3))], axis=1)
+    fk = forward_kinematics(skel, data["poses"][:, :3], data["trans"], aa)
+    np.testing.assert_allclose(data["positions"], fk, atol=1e-9)
+    with open(inferred / "feet.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [int(r["t_ns"]) for r in rows] == list(data["t_ns"])
+    marker = np.array([[float(r[f"marker_left_{a}"]) for a in "xyz"] for r in rows])
+    # the marker is the ankle plus the pipeline's offset in the ankle frame, scaled by height
+    R_ankle = so3_exp(data["poses"][:, :3])
+    for j in (1, 3, 5):  # L_hip, L_knee, L_ankle local rotations
+        R_ankle = R_ankle @ so3_exp(data["poses"][:, 3 * j : 3 * j + 3])
+    offset = np.array(PipelineParams().marker_offset_m) * 1.7 / 1.70
+    np.testing.assert_allclose(marker, fk[:, 5] + R_ankle @ offset, atol=2e-5)
+    assert len(list((inferred / "labels").glob("*.png"))) == n
+    for name in ("foot_left.tum", "foot_right.tum", "camera_frames.tum", "strides.csv"):
+        assert (inferred / name).stat().st_size > 0
+
+
+def test_evaluate_reads_the_result(inferred: Path, tiny_sim_session: Path, capsys) -> None:
+    assert main(["evaluate", str(inferred), "--session", str(tiny_sim_session)]) == 0
+    out = capsys.readouterr().out
+    for key in ("mpjpe_m", "foot_nmate_m", "body_ate_m", "miou"):
+        assert key in out
+
+
+def test_bad_arguments_are_one_line(
+    tmp_path: Path, tiny_sim_session: Path, tiny_segmenter: Path, capsys
+) -> None:
+    args = ["infer", str(tiny_sim_session), "--out", str(tmp_path / "o")]
+    args += ["--segmenter", str(tiny_segmenter)]
+    assert main([*args, "pipeline.foot_keypoint=toe"]) == 1
+    assert "foot_keypoint" in capsys.readouterr().err
+    assert main([*args, "--predictor", str(tmp_path / "none.onnx")]) == 1
+    assert "none.onnx" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_floor_in_camera_is_the_world_floor() -> None:
+    rng = np.random.default_rng(0)
+    T = np.eye(4)
+    T[:3, :3] = so3_exp(rng.normal(size=3))
+    T[:3, 3] = [0.3, -1.0, 0.95]
+    plane = floor_in_camera(T)
+    p_W = np.array([[1.0, 2.0, 0.0], [-0.5, 0.1, 0.0], [0.2, 0.2, 0.4]])
+    p_C = (p_W - T[:3, 3]) @ T[:3, :3]
+    np.testing.assert_allclose(plane.height(p_C), p_W[:, 2], atol=1e-12)
+
+
+def test_standing_frames_and_contact() -> None:
+    t = np.arange(60) / 30.0
+    T = np.tile(np.eye(4), (60, 1, 1))
+    T[20:, 0, 3] = (t[20:] - t[19]) * 1.0  # walks at 1 m/s from frame 20
+    assert _standing_frames(t, T, InferConfig()) == 20
+    short = InferConfig(pipeline=PipelineParams(standing_s=0.3))
+    assert _standing_frames(t, T, short) == 10  # frames at 0 … 0.3 s
+
+    class Vio:
+        stance_feet = [
+            StanceFoot(0, "left", 0.1, 0.5, np.zeros(2), np.zeros(2), 3),
+            StanceFoot(1, "right", 0.4, 0.9, np.zeros(2), np.zeros(2), 3),
+        ]
+
+    c = _contact(Vio(), np.array([0.0, 0.2, 0.45, 0.7, 1.0]))
+    np.testing.assert_array_equal(c, [[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]])
+
+
+def test_default_yaml_is_the_built_in_config_and_unused_keys_are_refused() -> None:
+    from gaitnet.config import load_config
+    from gaitnet.errors import ConfigError
+
+    root = Path(__file__).parents[1]
+    assert load_config(InferConfig, root / "configs" / "infer" / "default.yaml") == InferConfig()
+    for key in ("hha.floor.seed=3", "feet.use_floor=false", "hha.no_imu_pitch_deg=50"):
+        with pytest.raises(ConfigError, match=key.split("=")[0].rsplit(".", 1)[0]):
+            load_config(InferConfig, None, [key])
