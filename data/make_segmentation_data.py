@@ -15,7 +15,8 @@ per line (the format of :func:`gaitnet.segmentation.dataset.read_split`).
 
     python data/make_segmentation_data.py --out data/cache/seg
 
-reproduces the data of the committed model (about 20 minutes on one CPU core).
+reproduces the data of the committed model (about 20 minutes on one CPU core; ``--sets``
+splits the work between processes).
 """
 
 from __future__ import annotations
@@ -31,10 +32,10 @@ HELD_OUT = "wood"
 
 #: name, seed, frames to render, floor family (None: random), split file name.
 SETS: tuple[tuple[str, int, int, str | None], ...] = (
-    ("train", 101, 800, None),
-    ("val", 202, 100, None),
-    ("test", 303, 190, None),
-    ("heldout", 404, 100, HELD_OUT),
+    ("train", 101, 300, None),
+    ("val", 202, 80, None),
+    ("test", 303, 100, None),
+    ("heldout", 404, 60, HELD_OUT),
 )
 
 
@@ -83,9 +84,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--scale", type=float, default=1.0, help="multiply every set's frame count (smoke runs)"
     )
+    parser.add_argument(
+        "--sets",
+        nargs="+",
+        choices=[s[0] for s in SETS],
+        default=[s[0] for s in SETS],
+        help="render only these sets (e.g. in two processes)",
+    )
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     for name, seed, n, family in SETS:
+        if name not in args.sets:
+            continue
         folder = render(args.out, name, seed, n, family, args.scale)
         kept = write_split(folder, name, keep_held_out=family == HELD_OUT)
         print(f"{folder / (name + '.txt')}: {kept} frames")

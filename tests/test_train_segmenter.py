@@ -338,3 +338,21 @@ def test_every_segmenter_config_key_is_documented() -> None:
         assert documented[key][:2] == (tp, default), key
         assert documented[key][2], key
     assert config_keys(SegmenterTrainingConfig)
+
+
+def test_loader_keys_reach_the_loaders(tmp_path, frames, monkeypatch) -> None:
+    made = []
+
+    class Recording(torch.utils.data.DataLoader):
+        def __init__(self, dataset, batch_size=1, **kwargs):
+            made.append((len(dataset), batch_size, kwargs.get("num_workers", 0)))
+            super().__init__(dataset, batch_size, **{**kwargs, "num_workers": 0})
+
+    monkeypatch.setattr(script, "DataLoader", Recording)
+    config = _config(tmp_path, frames, name="loaders", data={"num_workers": 2},
+                     train={"epochs": 1, "max_steps_per_epoch": 1, "batch_size": 3,
+                            "eval_batch_size": 1},
+                     eval={"batch_size": 5, "sets": [str(frames / "test.txt")]})  # fmt: skip
+    assert _run("--config", str(config)) == 0
+    # train (6 frames, batch 3), val (2 frames, eval_batch_size 1), final eval (batch 5)
+    assert made == [(6, 3, 2), (2, 1, 2), (2, 5, 2)]
