@@ -2,12 +2,11 @@
 
 Runs the report stage alone on a ``gaitnet simulate`` session folder: the shoe-top markers of
 ``groundtruth/feet.csv`` as the foot trajectories (frames where ``marker_pixels.csv`` marks the
-marker visible count as measured, the others as filled), the 7 joints of ``joints.npz``,
-sagittal joint angles from those positions (a geometric stand-in for the pipeline's angles:
-hip and knee flexion in the plane of the forward axis z × (L_hip − R_hip) and z, ankle
-dorsiflexion relative to the first frames' standing angle), gait events, stances and strides
-from the trajectories (no filter), the parameters, the figures and the HTML report. Prints the
-per-side summary next to the same parameters computed from the simulator's true events.
+marker visible count as measured, the others as filled), the 7 joints of ``joints.npz`` and the
+sagittal joint angles of its local rotations (``gaitnet.pipeline.joint_angles``), gait
+events, stances and strides from the trajectories (no filter), the parameters, the figures and
+the HTML report. Prints the per-side summary next to the same parameters computed from the
+simulator's true events.
 
     python benchmarks/report_demo.py SESSION --out /tmp/report_demo
 """
@@ -31,6 +30,7 @@ from gaitnet.pipeline.gait_parameters import (
     summarise,
 )
 from gaitnet.pipeline.html_report import write_report
+from gaitnet.pipeline.joint_angles import sagittal_angles_deg
 from gaitnet.pipeline.plots import (
     foot_trajectories_png,
     gait_phases_png,
@@ -39,26 +39,6 @@ from gaitnet.pipeline.plots import (
     write_png,
 )
 from gaitnet.vio.gait import strides_from_stances
-
-
-def _angle(d: np.ndarray, forward: np.ndarray) -> np.ndarray:
-    """Sagittal angle [deg] of segment vectors d from straight down, positive forward."""
-    return np.degrees(np.arctan2(np.sum(d * forward, axis=-1), -d[..., 2]))
-
-
-def sagittal_angles(positions: np.ndarray) -> np.ndarray:
-    """(n, 6) hip, knee, ankle angles per side from joints.npz positions (9 joints)."""
-    lateral = positions[:, 1] - positions[:, 2]
-    forward = np.stack([lateral[:, 1], -lateral[:, 0], np.zeros(len(lateral))], axis=1)
-    forward /= np.linalg.norm(forward, axis=1, keepdims=True)
-    out = []
-    for hip, knee, ankle, foot in ((1, 3, 5, 7), (2, 4, 6, 8)):
-        thigh = _angle(positions[:, knee] - positions[:, hip], forward)
-        shank = _angle(positions[:, ankle] - positions[:, knee], forward)
-        foot_a = _angle(positions[:, foot] - positions[:, ankle], forward)
-        ankle_a = (foot_a - shank) - np.mean((foot_a - shank)[:10])
-        out += [thigh, thigh - shank, -ankle_a]
-    return np.stack(out, axis=1)
 
 
 def main() -> None:
@@ -78,9 +58,9 @@ def main() -> None:
         for r in csv.DictReader((gt / "marker_pixels.csv").open())
     }
     measured = {s: np.array([visible.get((k, s), False) for k in t_ns]) for s in SIDES}
-    positions = np.load(gt / "joints.npz")["positions"]
-    joints = positions[:, :7]
-    angles = sagittal_angles(positions)
+    truth_joints = np.load(gt / "joints.npz")
+    joints = truth_joints["positions"][:, :7]
+    angles = sagittal_angles_deg(truth_joints["joint_aa"][:, :6])
 
     start = time.perf_counter()
     contacts = detect_events(t, feet, joints)

@@ -30,11 +30,11 @@ from numpy.typing import ArrayLike, NDArray
 from gaitnet.errors import InputError
 from gaitnet.io.atomic import atomic_write_bytes
 from gaitnet.pipeline.gait_events import SIDES, FootContact, check_points, check_times
+from gaitnet.pipeline.joint_angles import ANGLE_NAMES
 from gaitnet.vio.gait import Stance
 from gaitnet.vio.report import SIDE_COLOURS
 
 __all__ = [
-    "ANGLE_COLUMNS",
     "PNG_SIGNATURE",
     "foot_trajectories_png",
     "gait_cycles",
@@ -45,15 +45,6 @@ __all__ = [
 ]
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-#: Columns of the joint-angle array [deg]: flexion positive, ankle dorsiflexion positive.
-ANGLE_COLUMNS = (
-    "left_hip_flexion_deg",
-    "left_knee_flexion_deg",
-    "left_ankle_dorsiflexion_deg",
-    "right_hip_flexion_deg",
-    "right_knee_flexion_deg",
-    "right_ankle_dorsiflexion_deg",
-)
 CYCLE_POINTS = 101
 DPI = 100
 FloatArray = NDArray[np.float64]
@@ -217,11 +208,12 @@ def gait_cycles(contacts: Sequence[FootContact], side: str) -> list[tuple[float,
 def joint_angles_png(
     t_s: ArrayLike, angles_deg: ArrayLike, contacts: Sequence[FootContact]
 ) -> bytes:
-    """Hip, knee and ankle angles [deg] (columns :data:`ANGLE_COLUMNS`, (n, 6) at ``t_s``)
-    over the normalised gait cycle (module docstring)."""
+    """Hip, knee and ankle angles [deg] over the normalised gait cycle (module docstring):
+    ``angles_deg`` (n, 6) at ``t_s``, columns
+    :data:`gaitnet.pipeline.joint_angles.ANGLE_NAMES` (hip L, R, knee L, R, ankle L, R)."""
     t = check_times(t_s)
     a = np.asarray(angles_deg, dtype=float)
-    if a.shape != (t.size, len(ANGLE_COLUMNS)):
+    if a.shape != (t.size, len(ANGLE_NAMES)):
         raise InputError(f"angles_deg: expected shape ({t.size}, 6), got {a.shape}")
     if not np.all(np.isfinite(a)):
         raise InputError("angles_deg: not all finite")
@@ -236,7 +228,7 @@ def joint_angles_png(
                 continue
             curves = np.array(
                 [
-                    np.interp(ic + phase / 100 * (nxt - ic), t, a[:, 3 * s + j])
+                    np.interp(ic + phase / 100 * (nxt - ic), t, a[:, 2 * j + s])
                     for ic, _, nxt in cycles
                 ]
             )
