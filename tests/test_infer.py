@@ -66,6 +66,11 @@ def test_files_agree_with_forward_kinematics(inferred: Path, tiny_sim_session: P
     assert len(list((inferred / "labels").glob("*.png"))) == n
     for name in ("foot_left.tum", "foot_right.tum", "camera_frames.tum", "strides.csv"):
         assert (inferred / name).stat().st_size > 0
+    report = (inferred / "report.html").read_text()
+    assert report.count("data:image/png;base64,") == 4 and "http://" not in report
+    for name in ("foot_trajectories", "top_view", "joint_angles", "gait_phases"):
+        assert (inferred / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (inferred / "gait_strides.csv").read_text().startswith("side,")
 
 
 def test_evaluate_reads_the_result(inferred: Path, tiny_sim_session: Path, capsys) -> None:

@@ -206,6 +206,7 @@ def _cmd_segment(args: argparse.Namespace) -> int:
 def _cmd_infer(args: argparse.Namespace) -> int:
     import time
 
+    from gaitnet import __version__
     from gaitnet.config import dump_config, load_config
     from gaitnet.io import open_session
     from gaitnet.io.atomic import StagedFolder, check_output_folder
@@ -251,6 +252,7 @@ def _cmd_infer(args: argparse.Namespace) -> int:
             "path": str(args.session),
             "device": session.calibration.device,
             "frames_in_session": len(session),
+            "software": f"gaitnet {__version__}",
         }
         write_infer_files(result, stage.path, facts)
         (stage.path / "infer_config.yaml").write_text(dump_config(cfg))

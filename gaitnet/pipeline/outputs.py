@@ -13,7 +13,13 @@
   orientation), ``camera_frames.tum`` the smoothed camera, ``pelvis_frames.tum`` the corrected
   pelvis (SMPL joint 0 with the pelvis axes x forward, y left, z up);
 - ``strides.csv``: the filter's strides (:data:`gaitnet.vio.gait.STRIDE_COLUMNS`);
-- ``summary.json``: session facts, models, skeleton, extrinsic, timings.
+- ``gait_strides.csv``: every stride's parameters (docs/report.md: lengths and times from the
+  filter's strides, stance / swing / double support from the gait events of the foot
+  trajectories);
+- ``report.html``: the self-contained gait report (header, time-distance table per side with
+  symmetry indices, per-stride table, figures), and the figures as PNG
+  (``foot_trajectories.png``, ``top_view.png``, ``joint_angles.png``, ``gait_phases.png``);
+- ``summary.json``: session facts, models, skeleton, extrinsic, the gait summary, timings.
 """
 
 from __future__ import annotations
@@ -28,8 +34,18 @@ import numpy as np
 from gaitnet.geometry import so3_exp
 from gaitnet.io.trajectory import tum_text
 from gaitnet.motion.skeleton import JOINT_NAMES, SMPL_JOINT_INDICES
+from gaitnet.pipeline.gait_events import detect_events
+from gaitnet.pipeline.gait_parameters import stride_parameters, stride_table_csv, summarise
+from gaitnet.pipeline.html_report import write_report
 from gaitnet.pipeline.infer import InferResult
 from gaitnet.pipeline.joint_angles import ANGLE_NAMES, sagittal_angles_deg
+from gaitnet.pipeline.plots import (
+    foot_trajectories_png,
+    gait_phases_png,
+    joint_angles_png,
+    top_view_png,
+    write_png,
+)
 from gaitnet.pipeline.pose_types import R_PfromSMPL
 from gaitnet.vio.gait import STRIDE_COLUMNS
 
@@ -137,4 +153,51 @@ def write_infer_files(r: InferResult, stage: Path, session_facts: dict[str, obje
     stride_rows = [[s.row()[c] for c in STRIDE_COLUMNS] for s in r.vio.strides]
     (stage / "strides.csv").write_text(_csv(list(STRIDE_COLUMNS), stride_rows))
     summary = result_summary(r, session_facts)
+    summary["gait"] = _write_report(r, stage, session_facts, angles)
     (stage / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")
+
+
+def _write_report(
+    r: InferResult, stage: Path, facts: dict[str, object], angles: np.ndarray
+) -> dict[str, object]:
+    """Gait events, per-stride parameters, figures and ``report.html``; the gait summary."""
+    feet = {s: r.feet_W[:, i] for i, s in enumerate(SIDES)}
+    measured = {s: r.foot_measured[:, i] for i, s in enumerate(SIDES)}
+    contacts = detect_events(r.t_s, feet, r.joints_W[:, :7])
+    rows = stride_parameters(r.vio.strides, contacts)
+    gait = summarise(rows)
+    (stage / "gait_strides.csv").write_text(stride_table_csv(rows))
+    figures = [
+        (
+            "Foot trajectories (solid: foot seen by the camera, dashed: filled by prediction)",
+            foot_trajectories_png(r.t_s, feet, measured),
+        ),
+        ("Walk seen from above", top_view_png(feet, (), contacts, r.vio.T_WfromC[:, :2, 3])),
+        ("Joint angles over the gait cycle (mean ± SD)", joint_angles_png(r.t_s, angles, contacts)),
+        (
+            "Stance and swing over time",
+            gait_phases_png(contacts, float(r.t_s[0]), float(r.t_s[-1])),
+        ),
+    ]
+    names = ("foot_trajectories", "top_view", "joint_angles", "gait_phases")
+    for name, (_, png) in zip(names, figures, strict=True):
+        write_png(stage / f"{name}.png", png)
+    header = {
+        "session": facts.get("path", ""),
+        "device": facts.get("device", ""),
+        "duration [s]": round(float(r.t_s[-1] - r.t_s[0]), 2),
+        "frames": len(r.t_s),
+        "body height [m]": round(r.subject_height_m, 2),
+        "models": f"{Path(r.segmenter_path).name}, {Path(r.predictor_path).name}",
+        "software": facts.get("software", ""),
+    }
+    notes = (
+        "Stride and step lengths come from the filter's stance-foot landmarks (docs/vio.md); "
+        "stance, swing and double support from gait events detected on the foot trajectories, "
+        "which read stance about 3 points and double support about 6 points high on simulated "
+        "walks (docs/report.md).",
+        "Frames where the camera did not see a foot are filled by the motion predictor and the "
+        "pose correction (dashed in the foot-trajectory figure).",
+    )
+    write_report(stage / "report.html", header, gait, rows, figures, notes=notes)
+    return gait
