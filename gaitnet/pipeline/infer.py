@@ -52,7 +52,15 @@ from gaitnet.vio.run import run_vio
 
 log = logging.getLogger(__name__)
 
-__all__ = ["DEFAULT_PREDICTOR", "InferResult", "default_predictor_path", "run_infer"]
+__all__ = [
+    "DEFAULT_PREDICTOR",
+    "InferResult",
+    "Observations",
+    "default_predictor_path",
+    "observe",
+    "reconstruct",
+    "run_infer",
+]
 
 Progress = Callable[[Iterable, int], Iterable]
 SIDES = ("left", "right")
@@ -175,6 +183,62 @@ def _predict(predictor: OnnxPredictor, history: list[PoseState]) -> PoseState:
     return PoseState(pose=np.concatenate([root, nxt[3:]]), trans=trans[-1] + velocity)
 
 
+@dataclass
+class Observations:
+    """Steps 1–2 of :func:`run_infer`: the filter's result and, per processed frame, the frame
+    time ``t_ns`` (n,) and the measured world foot points ``foot_W`` (n, 2, 3) (NaN where not
+    seen), with the wall-clock seconds of each stage."""
+
+    vio: VioResult
+    t_ns: np.ndarray
+    foot_W: np.ndarray
+    segmenter_path: str
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+
+def observe(
+    session: SessionSource,
+    cfg: InferConfig,
+    segmenter: OnnxSegmenter,
+    progress: Callable[[str], Progress] | None = None,
+    keep_labels: Callable[[int, np.ndarray], None] | None = None,
+) -> Observations:
+    """Steps 1–2 (module docstring): the filter and smoother, then the measured feet."""
+    timings: dict[str, float] = {}
+
+    def bar(stage: str) -> Progress | None:
+        return progress(stage) if progress is not None else None
+
+    t0 = time.perf_counter()
+    vio = run_vio(session, cfg.vio, progress=bar("filter"))
+    timings["filter"] = time.perf_counter() - t0
+    n = len(vio.t_s)
+    if n < 2:
+        raise SessionError(f"the filter processed {n} frame(s); need at least 2")
+    index_of = {int(i): k for k, i in enumerate(vio.session_index)}
+    K = session.calibration.color.K
+    t0 = time.perf_counter()
+    measured = np.full((n, 2, 3), np.nan)
+    t_ns = np.zeros(n, np.int64)
+    frames: Iterable = session.frames()
+    wrap = bar("segmenter")
+    if wrap is not None:
+        frames = wrap(frames, len(session))
+    for frame in frames:
+        k = index_of.get(frame.index)
+        if k is None:
+            continue
+        feet = measure_feet(
+            frame, K, vio.T_WfromC[k], segmenter, cfg.pipeline.foot_keypoint, cfg.hha, cfg.feet
+        )
+        measured[k] = feet.foot_W
+        t_ns[k] = frame.t_ns
+        if keep_labels is not None:
+            keep_labels(frame.t_ns, feet.labels)
+    timings["segmenter"] = time.perf_counter() - t0
+    return Observations(vio, t_ns, measured, str(segmenter.path), timings)
+
+
 def run_infer(
     session: SessionSource,
     cfg: InferConfig,
@@ -188,39 +252,24 @@ def run_infer(
     ``progress(stage)`` returns a progress wrapper for the stage's iterable (``"filter"``,
     ``"segmenter"``, ``"pose"``); ``keep_labels(t_ns, labels)`` receives each label map.
     """
-    timings: dict[str, float] = {}
+    obs = observe(session, cfg, segmenter, progress, keep_labels)
+    return reconstruct(obs, cfg, predictor, progress)
+
+
+def reconstruct(
+    obs: Observations,
+    cfg: InferConfig,
+    predictor: OnnxPredictor,
+    progress: Callable[[str], Progress] | None = None,
+) -> InferResult:
+    """Steps 3–5 (module docstring) from the observations of :func:`observe`."""
+    vio, measured, t_ns = obs.vio, obs.foot_W, obs.t_ns
+    timings = dict(obs.timings_s)
+    n = len(vio.t_s)
+    T_WfromC = vio.T_WfromC
 
     def bar(stage: str) -> Progress | None:
         return progress(stage) if progress is not None else None
-
-    t0 = time.perf_counter()
-    vio = run_vio(session, cfg.vio, progress=bar("filter"))
-    timings["filter"] = time.perf_counter() - t0
-    n = len(vio.t_s)
-    if n < 2:
-        raise SessionError(f"the filter processed {n} frame(s); need at least 2")
-    T_WfromC = vio.T_WfromC
-    index_of = {int(i): k for k, i in enumerate(vio.session_index)}
-    K = session.calibration.color.K
-    keypoint = cfg.pipeline.foot_keypoint
-
-    t0 = time.perf_counter()
-    measured = np.full((n, 2, 3), np.nan)
-    t_ns = np.zeros(n, np.int64)
-    frames: Iterable = session.frames()
-    wrap = bar("segmenter")
-    if wrap is not None:
-        frames = wrap(frames, len(session))
-    for frame in frames:
-        k = index_of.get(frame.index)
-        if k is None:
-            continue
-        feet = measure_feet(frame, K, T_WfromC[k], segmenter, keypoint, cfg.hha, cfg.feet)
-        measured[k] = feet.foot_W
-        t_ns[k] = frame.t_ns
-        if keep_labels is not None:
-            keep_labels(frame.t_ns, feet.labels)
-    timings["segmenter"] = time.perf_counter() - t0
 
     n_standing = _standing_frames(vio.t_s, T_WfromC, cfg)
     height = cfg.pipeline.subject_height_m
@@ -299,7 +348,7 @@ def run_infer(
         subject_height_m=height,
         extrinsic=extrinsic,
         standing_frames=n_standing,
-        segmenter_path=str(segmenter.path),
+        segmenter_path=obs.segmenter_path,
         predictor_path=str(predictor.path),
         timings_s=timings,
         correction_iterations=iterations,
