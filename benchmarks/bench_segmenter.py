@@ -5,9 +5,11 @@ the parity check (gaitnet.segmentation.onnx_runtime.export_segmenter_onnx) and t
 (the pipeline's per-frame case) on random frames in [0, 1]: ``torch.no_grad`` eager with
 ``torch.set_num_threads(t)`` and :class:`OnnxSegmenter` (its input checks included) with
 ``threads=t`` for t = 1, 2. The first call is a warm-up; a variant whose warm-up takes longer
-than ``--slow`` seconds (the published width 1) is timed once. Prints median (min) ms per frame,
-frames/s of onnxruntime on 2 threads, the machine's load average before and after, and the
-CPU. The target for the default CPU model is ≥ 15 frames/s with onnxruntime on 2 threads.
+than ``--slow`` seconds (the published width 1) is timed once. Prints median (min) wall ms per
+frame, frames/s of onnxruntime on 2 threads, the process CPU ms of the one-thread runs (on a
+busy machine the best estimate of the one-thread wall time on an idle one), the machine's load
+average before and after, and the CPU. The target for the default CPU model is ≥ 15 frames/s
+with onnxruntime on 2 threads.
 
     nice -n 10 python benchmarks/bench_segmenter.py                  # the default table
     python benchmarks/bench_segmenter.py --variants fusion:0.0625:0.5 rgb:0.125:1 --runs 20
@@ -52,18 +54,20 @@ def parse_variant(text: str) -> tuple[str, float, float]:
     return arch, float(width), float(scale)
 
 
-def time_calls(fn: Callable[[], object], runs: int, slow_s: float) -> np.ndarray:
-    """Seconds per call after one warm-up call (one timed call if the warm-up is slow)."""
+def time_calls(fn: Callable[[], object], runs: int, slow_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Wall and process-CPU seconds per call after one warm-up call (one timed call if the
+    warm-up is slow). On a busy machine the CPU time of a one-thread call is close to its wall
+    time on an idle one; the wall time is not."""
     t0 = time.perf_counter()
     fn()
     if time.perf_counter() - t0 > slow_s:
         runs = 1
-    out = np.empty(runs)
+    wall, cpu = np.empty(runs), np.empty(runs)
     for i in range(runs):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         fn()
-        out[i] = time.perf_counter() - t0
-    return out
+        wall[i], cpu[i] = time.perf_counter() - t0, time.process_time() - c0
+    return wall, cpu
 
 
 def cpu_name() -> str:
@@ -106,11 +110,13 @@ def bench_variant(
     for threads in (1, 2):
         torch.set_num_threads(threads)
         with torch.no_grad():
-            t = time_calls(lambda: net(xt), args.runs, args.slow)
+            t, c = time_calls(lambda: net(xt), args.runs, args.slow)
         row[f"torch_{threads}t_ms"] = [float(np.median(t) * 1e3), float(t.min() * 1e3), len(t)]
+        row[f"torch_{threads}t_cpu_ms"] = float(np.median(c) * 1e3)
         seg = OnnxSegmenter(path, threads=threads)
-        t = time_calls(lambda seg=seg: seg(x), args.runs, args.slow)
+        t, c = time_calls(lambda seg=seg: seg(x), args.runs, args.slow)
         row[f"ort_{threads}t_ms"] = [float(np.median(t) * 1e3), float(t.min() * 1e3), len(t)]
+        row[f"ort_{threads}t_cpu_ms"] = float(np.median(c) * 1e3)
         del seg
     path.unlink()
     return row
@@ -149,8 +155,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     head = (f"{'arch':6} {'width':>6} {'scale':>5} {'params':>9} {'MB':>6} | "
             f"{'torch 1 thread':>18} {'torch 2 threads':>18} | {'ort 1 thread':>18} "
-            f"{'ort 2 threads':>18} | {'fps ort 2t':>10}")  # fmt: skip
-    print("ms per frame: median (min); * = one timed run")
+            f"{'ort 2 threads':>18} | {'fps ort 2t':>10} | "
+            f"{'cpu torch 1t':>12} {'cpu ort 1t':>10}")  # fmt: skip
+    print("ms per frame: median (min) of wall time; * = one timed run; cpu: median process CPU ms")
     print(head)
     print("-" * len(head))
     rows = []
@@ -163,7 +170,8 @@ def main(argv: list[str] | None = None) -> int:
             ort_cells = f"{fmt(row['ort_1t_ms'])} {fmt(row['ort_2t_ms'])}"
             print(
                 f"{arch:6} {width:6.4g} {scale:5.2g} {row['params'] / 1e6:8.2f}M "
-                f"{row['onnx_mb']:6.2f} | {torch_cells} | {ort_cells} | {fps:10.1f}",
+                f"{row['onnx_mb']:6.2f} | {torch_cells} | {ort_cells} | {fps:10.1f} | "
+                f"{row['torch_1t_cpu_ms']:12.1f} {row['ort_1t_cpu_ms']:10.1f}",
                 flush=True,
             )
     load_after = os.getloadavg()
