@@ -122,3 +122,42 @@ def test_torch_and_onnx_give_the_same_numbers(tmp_path: Path) -> None:
         windows, {"gcn": onnx_predictor(OnnxPredictor(path))}, SKEL, n_past=10, fps=FPS
     )
     np.testing.assert_allclose(a.methods["gcn"].mpjpe_m, b.methods["gcn"].mpjpe_m, atol=1e-5)
+
+
+def test_motion_type_benchmark_script(tmp_path: Path) -> None:
+    """benchmarks/bench_predictor_motion.py on a folder of AMASS-format clips and an ONNX model."""
+    import json
+    import subprocess
+    import sys
+
+    from amassfactory import walking_like_clip, write_smplh_poses
+
+    from gaitnet.motion.gcn import DCTGCN, PredictorConfig
+    from gaitnet.motion.onnx_runtime import export_predictor_onnx
+
+    rng = np.random.default_rng(0)
+    poses, trans = walking_like_clip(120, 60.0, rng)
+    write_smplh_poses(tmp_path / "clips" / "D" / "s" / "a_walk_poses.npz", poses, trans, 60.0)
+    still = np.repeat(poses[:1], 120, axis=0)
+    write_smplh_poses(tmp_path / "clips" / "D" / "s" / "b_walk_poses.npz", still,
+                      np.repeat(trans[:1], 120, axis=0), 60.0)  # fmt: skip
+    model = DCTGCN(PredictorConfig(hidden=8, n_blocks=1, residual="last_pose")).eval()
+    export_predictor_onnx(model, tmp_path / "m.onnx")
+    script = Path(__file__).parents[1] / "benchmarks" / "bench_predictor_motion.py"
+    done = subprocess.run(
+        [sys.executable, str(script), "--amass-root", str(tmp_path / "clips"), "--model",
+         f"tiny={tmp_path / 'm.onnx'}", "--stride", "3", "--json", str(tmp_path / "r.json")],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    report = json.loads((tmp_path / "r.json").read_text())
+    standing = report["types"]["standing"]  # the still clip: every method is exact
+    assert standing["n_windows"] == 14 and standing["methods"]["tiny"]["mean_mm"] == 0.0
+    assert (
+        sum(t["n_windows"] for k, t in report["types"].items() if k != "all") == report["n_windows"]
+    )
+    bad = subprocess.run(
+        [sys.executable, str(script), "--prepared", str(tmp_path / "none.npz")],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert bad.returncode == 1 and bad.stderr.startswith("error: ")

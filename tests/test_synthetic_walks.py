@@ -273,3 +273,25 @@ def test_committed_mix_config_loads() -> None:
         SyntheticWalksConfig, ROOT / "configs" / "predictor" / "data" / "synthwalk_mix.yaml"
     )
     assert sum(v > 0 for v in cfg.mix.values()) == 5 and cfg.asymmetry_range[1] > 0
+
+
+def test_mix_ranges_act(tmp_path: Path) -> None:
+    """stand_range_s, asymmetry_range, turn_arc_range_m and min_speed_change_mps reach the clips."""
+    cfg = SyntheticWalksConfig(
+        train_subjects=1, val_subjects=0, test_subjects=0, walks_per_subject=4,
+        walk_length_range_m=(4.0, 5.0), mix_walk=0.0, mix_sharp_turn=1.0, mix_speed_change=1.0,
+        stand_range_s=(3.0, 3.2), asymmetry_range=(0.05, 0.06), turn_arc_range_m=(1.5, 1.6),
+        min_speed_change_mps=0.45, mocap_rates_hz=(60.0,),
+    )  # fmt: skip
+    report = make_synthetic_walks(tmp_path / "s", cfg)
+    assert {c.kind for c in report.clips} == {"sharp_turn", "speed_change"}
+    for c in report.clips:
+        assert 0.05 <= abs(c.step_length_asymmetry) <= 0.06
+        assert 0.05 <= abs(c.step_time_asymmetry) <= 0.06
+        if c.kind == "sharp_turn":
+            assert 1.5 <= c.turn_arc_m <= 1.6
+        else:
+            assert abs(c.speed_change * c.speed_mps) >= 0.45 - 1e-6
+        clip = read_amass_npz(tmp_path / "s" / c.path)
+        speed = np.linalg.norm(np.diff(clip.trans[:, :2], axis=0), axis=1) * clip.fps
+        assert np.argmax(speed > 0.05) / clip.fps >= 3.0  # standing start of 3.0–3.2 s

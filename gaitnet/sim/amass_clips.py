@@ -220,6 +220,9 @@ class SyntheticClip:
     duration_s: float
     speed_change: float = 0.0
     pause_s: float = 0.0
+    step_length_asymmetry: float = 0.0
+    step_time_asymmetry: float = 0.0
+    turn_arc_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -361,6 +364,7 @@ def _write_clips(
                     duration_s=round((n_frames - 1) / fps, 4),
                     speed_change=round(motion.speed_change, 4),
                     pause_s=round(motion.pause_s, 3),
+                    **_variation_fields(motion),
                 )
             )
     manifest = {
@@ -370,6 +374,18 @@ def _write_clips(
     }
     atomic_write_text(root / "manifest.json", json.dumps(manifest, indent=1) + "\n")
     return tuple(clips)
+
+
+def _variation_fields(motion: ClipMotion) -> dict[str, float | None]:
+    """The manifest's record of a clip's within-walk variation (asymmetry, turn arc)."""
+    v = motion.variation
+    if v is None:
+        return {}
+    return {
+        "step_length_asymmetry": round(v.step_length_asymmetry, 4),
+        "step_time_asymmetry": round(v.step_time_asymmetry, 4),
+        "turn_arc_m": None if v.turn_arc_m is None else round(v.turn_arc_m, 3),
+    }
 
 
 def _jsonable(value: object) -> object:

@@ -74,6 +74,7 @@ class ClipMotion:
     walk_length_m: float
     speed_change: float = 0.0
     pause_s: float = 0.0
+    variation: WalkVariation | None = None  # of the (first) walk
 
 
 def _uniform_in_bands(rng: np.random.Generator, bands: Iterable[Band]) -> float:
@@ -206,14 +207,14 @@ def clip_motion(
         return ClipMotion(
             sample, duration, first.skeleton.rest_joints, gait1.speed_mps,
             gait1.turn_deg + gait2.turn_deg, gait1.walk_length_m + gait2.walk_length_m,
-            pause_s=pause,
+            pause_s=pause, variation=var1,
         )  # fmt: skip
     variation, gait = _variation(rng, cfg, kind, gait)
     walk = generate_walk(subject, gait, rng, variation=variation)
     return ClipMotion(
         _walk_sampler(walk), walk.duration_s, walk.skeleton.rest_joints, gait.speed_mps,
         gait.turn_deg, gait.walk_length_m,
-        speed_change=0.0 if variation is None else variation.speed_change,
+        speed_change=0.0 if variation is None else variation.speed_change, variation=variation,
     )  # fmt: skip
 
 
