@@ -295,3 +295,11 @@ def test_mix_ranges_act(tmp_path: Path) -> None:
         clip = read_amass_npz(tmp_path / "s" / c.path)
         speed = np.linalg.norm(np.diff(clip.trans[:, :2], axis=0), axis=1) * clip.fps
         assert np.argmax(speed > 0.05) / clip.fps >= 3.0  # standing start of 3.0–3.2 s
+
+
+def test_every_mix_key_is_documented() -> None:
+    from dataclasses import fields
+
+    text = (ROOT / "docs" / "predictor.md").read_text()
+    missing = [f.name for f in fields(SyntheticWalksConfig) if f"`{f.name}`" not in text]
+    assert not missing, f"SyntheticWalksConfig keys missing in docs/predictor.md: {missing}"
