@@ -327,12 +327,13 @@ def run_session(session: Path, args: argparse.Namespace, rng: np.random.Generato
         "+ constraints (hinge, ROM, fixed lengths)": PoseCorrectionParams.thesis(
             knee_hinge=True, rom_limits=True, fixed_lengths=True
         ),
-        "+ robust Cauchy, contact weighting": PoseCorrectionParams(
+        "+ robust Cauchy, contact weighting, flat stance feet": PoseCorrectionParams(
             contact_weighting=True, marker_offset=False
         ),
         "+ marker offset (all)": PoseCorrectionParams(contact_weighting=True),
         "all but contact weighting (the default)": PoseCorrectionParams(),
-        "all but robust and contact": PoseCorrectionParams(robust_foot=False),
+        "default without robust loss": PoseCorrectionParams(robust_foot=False),
+        "default without flat stance feet": PoseCorrectionParams(flat_foot_contact=False),
     }
     drawn = drawn_priors(truth, true_pose, rng)
     for kind, (idx, prior_pose, prior_trans) in {
@@ -403,13 +404,16 @@ def closed_loop(
     idx = np.arange(past, len(meas))
     print(f"\nclosed loop: predictor → correction, frames {past}..{len(meas) - 1}")
     print(HEADER)
+    feet = meas[past:]
     runs = {
         "pelvis only, no feet (default params)": (
-            [FrameMeasurements(m.R_WfromP, m.p_PinW) for m in meas[past:]],
+            [FrameMeasurements(m.R_WfromP, m.p_PinW) for m in feet],
             PoseCorrectionParams(),
         ),
-        "LM, thesis objective (eq. 4.8, squared)": (meas[past:], PoseCorrectionParams.thesis()),
-        "all but contact weighting (the default)": (meas[past:], PoseCorrectionParams()),
+        "LM, thesis objective (eq. 4.8, squared)": (feet, PoseCorrectionParams.thesis()),
+        "all but contact weighting (the default)": (feet, PoseCorrectionParams()),
+        "default with contact weighting": (feet, PoseCorrectionParams(contact_weighting=True)),
+        "default without flat stance feet": (feet, PoseCorrectionParams(flat_foot_contact=False)),
     }
     for name, (m, par) in runs.items():
         c0, w0 = time.process_time(), time.perf_counter()

@@ -21,7 +21,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gaitnet.errors import InputError
-from gaitnet.geometry import so3_exp, so3_log
 from gaitnet.motion.skeleton import LowerBodySkeleton, from_rest_joints
 from gaitnet.pipeline.pose_residuals import (
     ChainGeometry,
@@ -29,6 +28,8 @@ from gaitnet.pipeline.pose_residuals import (
     Problem,
     chain_points,
     evaluate,
+    exp_and_right_jacobian,
+    log_and_right_jacobian_inv,
     retract,
 )
 from gaitnet.pipeline.pose_types import (
@@ -68,6 +69,18 @@ class CorrectionInfo:
     foot_points: FloatArray
 
 
+_LAST_GEOMETRY: list[tuple[LowerBodySkeleton, PoseCorrectionParams, ChainGeometry]] = []
+
+
+def _geometry(skel: LowerBodySkeleton, params: PoseCorrectionParams) -> ChainGeometry:
+    """The chain constants, kept for the skeleton and parameters (by identity) last used."""
+    if _LAST_GEOMETRY and _LAST_GEOMETRY[0][0] is skel and _LAST_GEOMETRY[0][1] is params:
+        return _LAST_GEOMETRY[0][2]
+    geo = ChainGeometry.build(skel, params)
+    _LAST_GEOMETRY[:] = [(skel, params, geo)]
+    return geo
+
+
 def _problem(
     priors: Sequence[PoseState],
     meas: Sequence[FrameMeasurements],
@@ -82,9 +95,9 @@ def _problem(
         if not isinstance(p, PoseState) or not isinstance(m, FrameMeasurements):
             raise InputError(f"pose correction frame {i}: expected PoseState and FrameMeasurements")
     B = len(priors)
-    geo = ChainGeometry.build(skel, params)
+    geo = _geometry(skel, params)
     pose = np.stack([p.pose for p in priors])
-    R_prior = so3_exp(pose[:, :3])
+    R_prior, _ = exp_and_right_jacobian(pose[:, :3])
     measured_rot = np.array([m.R_WfromP is not None for m in meas])
     R_meas = np.tile(np.eye(3), (B, 1, 1))
     for i, m in enumerate(meas):
@@ -185,7 +198,7 @@ def correct_poses(
     params = params or PoseCorrectionParams()
     pb, s0 = _problem(priors, measurements, skeleton, params)
     s, cost0, cost, iterations = _levenberg_marquardt(pb, s0)
-    root = so3_log(s.R0)
+    root, _ = log_and_right_jacobian_inv(s.R0)
     poses = [
         PoseState(pose=np.concatenate([root[i], s.a[i].ravel()]), trans=s.t[i])
         for i in range(len(priors))

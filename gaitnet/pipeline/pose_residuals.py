@@ -293,18 +293,15 @@ def evaluate(
         return r, None, cost
     J = pb.J_const.copy()
     J[:, 18:24, 0:3] = (pb.w_rot[..., None, None] * Jinv).reshape(B, 6, 3)
-    J[:, 30:36] = (
-        _foot_jacobian(pts, s, pb.n_params).reshape(B, 6, -1)
-        * np.repeat(scale_foot, 3, axis=1)[..., None]
-    )
+    Jf = _feet_jacobian(pts, s, pb.n_params, par.flat_foot_contact)
+    J[:, 30:36] = (Jf[:, :, 0:3] * scale_foot[..., None, None]).reshape(B, 6, -1)
     row = 36 + 4 * (not par.fixed_lengths) + 4 * par.knee_hinge
     if par.rom_limits:
         outside = ((a < pb.rom_lo) | (a > pb.rom_hi)) / par.sigma_rom_rad
         J[:, row + _ROWS18, _A0 + _ROWS18] = outside
         row += 18
     if par.flat_foot_contact:
-        Jflat = _flat_jacobian(pts, s, pb.n_params) * pb.w_flat[..., None, None]
-        J[:, row : row + 4] = Jflat.reshape(B, 4, -1)
+        J[:, row : row + 4] = (Jf[:, :, 3:5] * pb.w_flat[..., None, None]).reshape(B, 4, -1)
     return r, J, cost
 
 
@@ -328,31 +325,31 @@ def _chain_jacobian(
     return Jq
 
 
-def _foot_jacobian(pts: dict[str, FloatArray], s: ChainState, n: int) -> FloatArray:
-    """∂(foot point)/∂(parameters): (B, 2, 3, n); ``∂p/∂φ = −[p − p_k]×`` at each joint."""
+def _feet_jacobian(pts: dict[str, FloatArray], s: ChainState, n: int, flat: bool) -> FloatArray:
+    """∂(foot point)/∂(parameters) (B, 2, 3, n), then with ``flat`` ∂(flat residuals) (B, 2, 2,
+    n) stacked below, in one pass: ``∂p/∂φ = −[p − p_k]×`` at each joint; the flat residuals
+    ``e_zᵀ G_ank e_k`` have rows ``(G_ank e_k × e_z)ᵀ`` at every level."""
     f = pts["foot"]
     lever = f[:, :, None] - np.stack([pts["hip"], pts["knee"], pts["ankle"]], axis=2)
-    Jf = _chain_jacobian(pts, s, n, -_skew(f - pts["p0"][:, None]), -_skew(lever))
-    Jf[..., 3:6] = _EYE3
+    A_root, A = -_skew(f - pts["p0"][:, None]), -_skew(lever)
+    if flat:
+        axes = pts["G_ank"][..., :, 0::2].swapaxes(-1, -2)  # (B, 2, 2, 3): G e_x, G e_z
+        rows = np.zeros_like(axes)  # v × e_z = (v_y, −v_x, 0)
+        rows[..., 0], rows[..., 1] = axes[..., 1], -axes[..., 0]
+        A_root = np.concatenate([A_root, rows], axis=2)
+        A = np.concatenate([A, np.broadcast_to(rows[:, :, None], (*rows.shape[:2], 3, 2, 3))], 3)
+    Jf = _chain_jacobian(pts, s, n, A_root, A)
+    Jf[:, :, 0:3, 3:6] = _EYE3
     if n > N_BASE_PARAMS:
         for side in (0, 1):
-            Jf[:, side, :, _L0 + side] = pts["d_thigh"][:, side]
-            Jf[:, side, :, _L0 + 2 + side] = pts["d_shank"][:, side]
+            Jf[:, side, 0:3, _L0 + side] = pts["d_thigh"][:, side]
+            Jf[:, side, 0:3, _L0 + 2 + side] = pts["d_shank"][:, side]
     return Jf
 
 
 def _flat_residuals(pts: dict[str, FloatArray]) -> FloatArray:
     """World-up components of the ankle frames' left and forward axes (B, 2, 2): 0 when flat."""
     return pts["G_ank"][:, :, 2, 0::2]
-
-
-def _flat_jacobian(pts: dict[str, FloatArray], s: ChainState, n: int) -> FloatArray:
-    """∂(flat residuals)/∂(parameters): (B, 2, 2, n), rows ``(G_ank e_k × e_z)ᵀ`` per level."""
-    axes = pts["G_ank"][..., :, 0::2].swapaxes(-1, -2)  # (B, 2, 2, 3): G e_x, G e_z
-    rows = np.cross(axes, _EYE3[2])
-    return _chain_jacobian(
-        pts, s, n, rows, np.broadcast_to(rows[:, :, None], (*rows.shape[:2], 3, 2, 3))
-    )
 
 
 def retract(s: ChainState, step: FloatArray) -> ChainState:
