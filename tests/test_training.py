@@ -451,3 +451,24 @@ def test_augmented_last_pose_run(tmp_path: Path, prepared) -> None:
     state = torch.load(tmp_path / "runs" / "aug" / "best.pt", weights_only=True)
     assert state["config"]["model"]["residual"] == "last_pose"
     assert state["model"]["gc1.weight"].shape[0] == 21  # dct_n + the last pose
+
+
+def test_init_fine_tunes_from_checkpoint_weights(tmp_path: Path, prepared, two_epochs) -> None:
+    """--init: a fresh run (epoch 0, new optimizer) from the checkpoint's weights and
+    architecture; here with the window-normalised loss and a negligible learning rate, so the
+    weights stay those of the checkpoint."""
+    config = _config(tmp_path, prepared, name="ft")
+    init = two_epochs / "best.pt"
+    assert _run("--config", str(config), "--init", str(init), "train.epochs=1",
+                "model.hidden=32", "optim.lr=1e-12",
+                "loss.window_normalisation=baseline") == 0  # fmt: skip
+    run = tmp_path / "runs" / "ft"
+    state = torch.load(run / "last.pt", weights_only=True)
+    start = torch.load(init, weights_only=True)
+    assert state["epoch"] == 0 and state["config"]["model"]["hidden"] == 16
+    assert state["config"]["loss"]["window_normalisation"] == "baseline"
+    for key in ("gc1.weight", "gc7.weight", "gcbs.0.gc1.att"):
+        torch.testing.assert_close(state["model"][key], start["model"][key], rtol=0, atol=1e-9)
+    assert "initialised from the weights of" in (run / "train.log").read_text()
+    with pytest.raises(InputError, match="--init"):
+        _run("--config", str(config), "--init", str(init), "--resume")

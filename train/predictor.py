@@ -4,6 +4,7 @@
     python train/predictor.py --config configs/predictor/dctgcn_synthwalk_small.yaml --resume
     python train/predictor.py --config C.yaml --resume --checkpoint other/last.pt train.epochs=80
     python train/predictor.py --config C.yaml train.epochs=5 optim.lr=1e-3     # overrides
+    python train/predictor.py --config C.yaml --init runs/predictor/N/best.pt   # fine-tune
     torchrun --nproc_per_node 2 train/predictor.py --config C.yaml              # DDP
     python train/predictor.py --config C.yaml --eval-only --checkpoint runs/predictor/N/best.pt
     python train/predictor.py --config C.yaml --eval-only --onnx models/predictor/N.onnx
@@ -65,6 +66,7 @@ from gaitnet.training.predictor import (
     clip_skeletons,
     loss_skeleton,
     prepared_with_split,
+    window_weights,
 )
 from gaitnet.training.scripts import ScriptParser
 from gaitnet.training.seeding import restore_rng_state, rng_state, seed_everything
@@ -106,7 +108,9 @@ def train_one_epoch(
         if noise > 0:  # noise on the observed input only; the targets stay clean
             past = past + noise * torch.randn_like(past)
         out = model(past)
-        loss = motion_loss(out, poses, skeleton, w_mpjpe=cfg.loss.w_mpjpe, w_mae=cfg.loss.w_mae)
+        weights = window_weights(cfg.loss, getattr(model, "module", model), poses, skeleton)
+        loss = motion_loss(out, poses, skeleton, w_mpjpe=cfg.loss.w_mpjpe, w_mae=cfg.loss.w_mae,
+                           window_weights=weights)  # fmt: skip
         optimizer.zero_grad(set_to_none=True)
         loss.total.backward()
         if cfg.optim.grad_clip_norm > 0:
@@ -147,7 +151,9 @@ def evaluate(
     for poses, skeleton in loader:
         poses, skeleton = poses.to(device), skeleton.to(device)
         out = model(poses[:, :n_past])
-        loss = motion_loss(out, poses, skeleton, w_mpjpe=cfg.loss.w_mpjpe, w_mae=cfg.loss.w_mae)
+        weights = window_weights(cfg.loss, model, poses, skeleton)
+        loss = motion_loss(out, poses, skeleton, w_mpjpe=cfg.loss.w_mpjpe, w_mae=cfg.loss.w_mae,
+                           window_weights=weights)  # fmt: skip
         b = poses.shape[0]
         pred, true = out[:, n_past:], poses[:, n_past:]
         skel = per_window_skeleton(skeleton, pred)
@@ -252,7 +258,12 @@ def main(args: argparse.Namespace) -> int:
     if args.onnx is not None or args.out is not None:
         raise InputError("--onnx and --out only go with --eval-only")
 
-    ckpt, ckpt_path = None, None
+    ckpt, ckpt_path, init = None, None, None
+    if args.init is not None:  # fine-tuning: weights (and architecture) only, a fresh run
+        if args.resume or args.checkpoint is not None:
+            raise InputError("--init starts a fresh run: it excludes --resume and --checkpoint")
+        init = load_checkpoint(args.init)
+        cfg = _with_checkpoint_architecture(cfg, init, args.init)
     if args.resume:
         ckpt_path = run_dir / "last.pt" if args.checkpoint is None else Path(args.checkpoint)
         ckpt = load_checkpoint(ckpt_path)
@@ -304,6 +315,8 @@ def main(args: argparse.Namespace) -> int:
         optimizer, step_size=cfg.optim.lr_step_epochs, gamma=cfg.optim.lr_gamma
     )
     start_epoch, best_metric, best_epoch = 0, math.inf, -1
+    if init is not None:
+        load_state(model_without_ddp, init["model"], args.init, "model")
     if ckpt is not None:
         load_state(model_without_ddp, ckpt["model"], ckpt_path, "model")
         load_state(optimizer, ckpt["optimizer"], ckpt_path, "optimizer")
@@ -324,6 +337,8 @@ def main(args: argparse.Namespace) -> int:
                 cfg.data.prepared)  # fmt: skip
     n_params = sum(p.numel() for p in model_without_ddp.parameters())
     logger.info("DCTGCN %s: %d parameters", cfg.model, n_params)
+    if init is not None:
+        logger.info("initialised from the weights of %s (epoch %d)", args.init, int(init["epoch"]))
     if ckpt is not None:
         logger.info("resumed from epoch %d (best %.5f at epoch %d)", start_epoch - 1,
                     best_metric, best_epoch)  # fmt: skip
@@ -403,8 +418,8 @@ def eval_only(cfg: PredictorTrainingConfig, args: argparse.Namespace, device: to
     """``--eval-only``: evaluate a checkpoint (architecture from it) or an ONNX file."""
     if (args.checkpoint is None) == (args.onnx is None):
         raise InputError("--eval-only needs exactly one of --checkpoint or --onnx")
-    if args.resume:
-        raise InputError("--resume and --eval-only exclude each other")
+    if args.resume or args.init is not None:
+        raise InputError("--resume and --init do not go with --eval-only")
     extra = {"config": config_to_dict(cfg)}
     if args.checkpoint is not None:
         ckpt = load_checkpoint(args.checkpoint)
@@ -432,6 +447,11 @@ def get_args_parser() -> argparse.ArgumentParser:
         "--resume",
         action="store_true",
         help="continue from <run_dir>/last.pt (or --checkpoint); the whole state is restored",
+    )
+    parser.add_argument(
+        "--init",
+        help="fine-tune: start a fresh run (epoch 0, new optimizer) from this checkpoint's "
+        "weights; model.* keys come from it",
     )
     parser.add_argument("--eval-only", action="store_true", help="only evaluate, no training")
     parser.add_argument(

@@ -247,13 +247,18 @@ class DCTGCN(nn.Module):
         self.do = nn.Dropout(config.dropout)
         self.act_f = nn.Tanh()
 
-    def encode(self, past: torch.Tensor) -> torch.Tensor:
-        """Pad (the last observed pose, plus the damped last step with ``pad_velocity_decay``),
-        then DCT: (B, n_past, N) → (B, N, dct_n)."""
+    def pad(self, past: torch.Tensor) -> torch.Tensor:
+        """The padded sequence (B, n_past + n_future, N): the observed poses, then the last
+        observed pose plus the damped last step with ``pad_velocity_decay`` (the guess the
+        network corrects; zero velocity with γ = 0)."""
         padded = past[:, self.pad_idx]  # (B, T, N)
         if self.config.pad_velocity_decay > 0 and past.shape[1] >= 2:
             padded = padded + self.pad_steps * (past[:, -1:] - past[:, -2:-1])
-        return torch.matmul(self.dct_m, padded).transpose(1, 2)
+        return padded
+
+    def encode(self, past: torch.Tensor) -> torch.Tensor:
+        """Pad (:meth:`pad`), then DCT: (B, n_past, N) → (B, N, dct_n)."""
+        return torch.matmul(self.dct_m, self.pad(past)).transpose(1, 2)
 
     def decode(self, coeffs: torch.Tensor) -> torch.Tensor:
         """Inverse DCT (4.3) of (B, N, dct_n) coefficients → (B, n_past + n_future, N)."""

@@ -42,7 +42,8 @@ from torch.utils.data import Dataset
 from gaitnet.checks import check_int_range, check_range
 from gaitnet.motion.amass import DatasetSplit
 from gaitnet.motion.augment import augment_split
-from gaitnet.motion.gcn import NODE_JOINTS, PredictorConfig
+from gaitnet.motion.gcn import DCTGCN, NODE_JOINTS, PredictorConfig
+from gaitnet.motion.losses import baseline_window_weights
 from gaitnet.motion.prepared import PreparedWalking, load_prepared
 from gaitnet.motion.skeleton import LowerBodySkeleton, builtin_skeleton
 from gaitnet.motion.windows import WalkingWindows
@@ -61,6 +62,7 @@ __all__ = [
     "clip_skeletons",
     "loss_skeleton",
     "prepared_with_split",
+    "window_weights",
 ]
 
 logger = logging.getLogger(__name__)
@@ -92,7 +94,10 @@ class DataConfig:
 
 @dataclass(frozen=True)
 class LossConfig:
-    """``loss = w_mpjpe · MPJPE (4.5, m) + w_mae · MAE (4.6, rad)`` and the FK skeleton."""
+    """``loss = w_mpjpe · MPJPE (4.5, m) + w_mae · MAE (4.6, rad)``, the FK skeleton and the
+    window weights: with ``window_normalisation: baseline`` each window's loss is divided by
+    ``e_b + normalisation_eps_m`` (times ``normalisation_eps_m``), ``e_b`` the MPJPE of the
+    model's padding guess over its predicted frames (:func:`window_weights`)."""
 
     w_mpjpe: float = 1.0
     w_mae: float = 0.1
@@ -100,8 +105,16 @@ class LossConfig:
     body_model: Path | None = None
     body_model_gender: str = "neutral"
     per_clip_skeleton: bool = True
+    window_normalisation: Literal["none", "baseline"] = "none"
+    normalisation_eps_m: float = 0.01
 
     def __post_init__(self) -> None:
+        if self.window_normalisation not in ("none", "baseline"):
+            raise ValueError(
+                "loss.window_normalisation must be 'none' or 'baseline', "
+                f"got {self.window_normalisation!r}"
+            )
+        check_range("loss.normalisation_eps_m", self.normalisation_eps_m, 1e-6, 1.0)
         check_range("loss.w_mpjpe", self.w_mpjpe, 0.0, 1e6)
         check_range("loss.w_mae", self.w_mae, 0.0, 1e6)
         if self.w_mpjpe + self.w_mae <= 0:
@@ -347,3 +360,18 @@ def augmented(prepared: PreparedWalking, cfg: AugmentConfig) -> PreparedWalking:
         list(cfg.time_scales),
     )
     return out
+
+
+def window_weights(
+    cfg: LossConfig, model: DCTGCN, poses: torch.Tensor, skeleton: torch.Tensor
+) -> torch.Tensor | None:
+    """Per-window loss weights (B,) of ``loss.window_normalisation`` for (B, W, 21) windows, or
+    None (``none``). ``baseline``: ``ε / (e_b + ε)``
+    (:func:`gaitnet.motion.losses.baseline_window_weights`), ``e_b`` the MPJPE on the window's
+    ``skeleton`` of ``model``'s padding guess (:meth:`DCTGCN.pad`, from the clean observed
+    poses) over the predicted frames, ``ε = loss.normalisation_eps_m``."""
+    if cfg.window_normalisation == "none":
+        return None
+    n_past = model.config.n_past
+    guess = model.pad(poses[:, :n_past])[:, n_past:]
+    return baseline_window_weights(guess, poses[:, n_past:], skeleton, cfg.normalisation_eps_m)
