@@ -130,3 +130,37 @@ def test_default_yaml_is_the_built_in_config_and_unused_keys_are_refused() -> No
     for key in ("hha.floor.seed=3", "feet.use_floor=false", "hha.no_imu_pitch_deg=50"):
         with pytest.raises(ConfigError, match=key.split("=")[0].rsplit(".", 1)[0]):
             load_config(InferConfig, None, [key])
+
+
+def test_workers_act_and_do_not_change_the_result(
+    tiny_sim_session: Path, tiny_segmenter: Path, monkeypatch
+) -> None:
+    """``pipeline.workers`` sets the threads that segment frames; the measured feet are the
+    same for 1 and 3 threads (each frame is measured on its own)."""
+    import gaitnet.pipeline.infer as infer
+    from gaitnet.config import load_config
+    from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
+
+    seen = []
+    real = infer.ThreadPoolExecutor
+
+    def spy(max_workers: int):
+        seen.append(max_workers)
+        return real(max_workers=max_workers)
+
+    monkeypatch.setattr(infer, "ThreadPoolExecutor", spy)
+    session = open_session(tiny_sim_session)
+    seg = OnnxSegmenter(tiny_segmenter)
+    one = infer.observe(
+        session,
+        load_config(InferConfig, None, ["vio.smoother.enabled=false", "pipeline.workers=1"]),
+        seg,
+    )
+    three = infer.observe(
+        session,
+        load_config(InferConfig, None, ["vio.smoother.enabled=false", "pipeline.workers=3"]),
+        seg,
+    )
+    assert seen == [1, 3]
+    np.testing.assert_array_equal(one.foot_W, three.foot_W)
+    np.testing.assert_array_equal(one.t_ns, three.t_ns)

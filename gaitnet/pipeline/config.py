@@ -77,6 +77,9 @@ class PipelineParams:
     foot_keypoint: Literal["top", "mid", "bottom"] = "mid"
     """Which keypoint of eq. 4.1 is a foot's measured point (``mid``: the middle of the visible
     shoe, nearest the instep marker the pose correction's offset points to)."""
+    workers: int = 2
+    """Threads that segment frames at once (HHA, the network and the post-processing of
+    different frames overlap; each network call uses ``models.threads``)."""
     subject_height_m: float = 0.0
     """Body height for the anthropometric skeleton [m]; 0: from the standing camera height
     (``camera_height_fraction``)."""
@@ -100,6 +103,7 @@ class PipelineParams:
             raise ValueError(
                 f"pipeline.foot_keypoint must be top, mid or bottom, got {self.foot_keypoint!r}"
             )
+        check_int_range("pipeline.workers", self.workers, 1, 64)
         if self.subject_height_m != 0:
             check_range("pipeline.subject_height_m", self.subject_height_m, 0.8, 2.3, " m")
         check_range("pipeline.camera_height_fraction", self.camera_height_fraction, 0.3, 0.8)

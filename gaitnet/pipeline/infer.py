@@ -23,7 +23,9 @@ from __future__ import annotations
 
 import logging
 import time
+from collections import deque
 from collections.abc import Callable, Iterable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -31,12 +33,12 @@ import numpy as np
 
 from gaitnet.errors import InputError, SessionError
 from gaitnet.geometry import so3_exp, so3_log
-from gaitnet.io.types import SessionSource
+from gaitnet.io.types import Frame, SessionSource
 from gaitnet.motion.heading import normalise_heading
 from gaitnet.motion.onnx_runtime import OnnxPredictor
 from gaitnet.motion.skeleton import LowerBodySkeleton, builtin_skeleton, forward_kinematics
 from gaitnet.pipeline.config import REFERENCE_HEIGHT_M, InferConfig
-from gaitnet.pipeline.foot_points import measure_feet
+from gaitnet.pipeline.foot_points import FrameFeet, measure_feet
 from gaitnet.pipeline.pelvis_extrinsic import (
     PelvisExtrinsic,
     estimate_T_PfromC,
@@ -224,17 +226,33 @@ def observe(
     wrap = bar("segmenter")
     if wrap is not None:
         frames = wrap(frames, len(session))
-    for frame in frames:
-        k = index_of.get(frame.index)
-        if k is None:
-            continue
+
+    def one(frame: Frame, k: int) -> tuple[Frame, int, FrameFeet]:
         feet = measure_feet(
             frame, K, vio.T_WfromC[k], segmenter, cfg.pipeline.foot_keypoint, cfg.hha, cfg.feet
         )
+        return frame, k, feet
+
+    def done(frame: Frame, k: int, feet: FrameFeet) -> None:
         measured[k] = feet.foot_W
         t_ns[k] = frame.t_ns
         if keep_labels is not None:
             keep_labels(frame.t_ns, feet.labels)
+
+    # frames in flight on ``pipeline.workers`` threads (onnxruntime, OpenCV and most of numpy
+    # release the GIL), results taken in order; at most 2 per worker are held in memory
+    workers = cfg.pipeline.workers
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        pending: deque[Future] = deque()
+        for frame in frames:
+            k = index_of.get(frame.index)
+            if k is None:
+                continue
+            pending.append(pool.submit(one, frame, k))
+            while len(pending) > 2 * workers:
+                done(*pending.popleft().result())
+        while pending:
+            done(*pending.popleft().result())
     timings["segmenter"] = time.perf_counter() - t0
     return Observations(vio, t_ns, measured, str(segmenter.path), timings)
 
