@@ -38,15 +38,15 @@ R_PfromSMPL = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 #: / external rotation; z forward: ab-/adduction, +z abducts the LEFT leg). Rows: L_hip,
 #: R_hip, L_knee, R_knee, L_ankle, R_ankle; textbook ranges (hip flexion 125°, extension 30°,
 #: abduction 45°, adduction 30°, rotation 45°; knee 0–150° with 10° of slack at extension;
-#: ankle plantarflexion 65° (the passive range), dorsiflexion 45° (beyond the textbook 20–30°:
-#: the simulator's stance ankle reaches 40°), inversion / eversion and ankle rotation 30°).
+#: ankle dorsiflexion 30°, plantarflexion 50°, inversion / eversion and ankle rotation 30°).
+#: The simulator's stance ankle dorsiflexes up to 40° (docs/pose-correction.md).
 DEFAULT_ROM_DEG: tuple[tuple[tuple[float, float], ...], ...] = (
     ((-125.0, 30.0), (-45.0, 45.0), (-30.0, 45.0)),
     ((-125.0, 30.0), (-45.0, 45.0), (-45.0, 30.0)),
     ((-10.0, 150.0), (-30.0, 30.0), (-30.0, 30.0)),
     ((-10.0, 150.0), (-30.0, 30.0), (-30.0, 30.0)),
-    ((-45.0, 65.0), (-30.0, 30.0), (-30.0, 30.0)),
-    ((-45.0, 65.0), (-30.0, 30.0), (-30.0, 30.0)),
+    ((-30.0, 50.0), (-30.0, 30.0), (-30.0, 30.0)),
+    ((-30.0, 50.0), (-30.0, 30.0), (-30.0, 30.0)),
 )
 
 
