@@ -97,7 +97,8 @@ class FrameMeasurements:
     ``R_WfromP`` (3, 3) and ``p_PinW`` (3,): the pelvis orientation and position (SMPL joint 0;
     pelvis frame x forward, y left, z up), each ``None`` when not measured. ``foot_W`` (2, 3):
     one point on each foot (rows left, right), a row of NaN where that foot is not seen.
-    ``contact`` (2,) in [0, 1]: how sure we are that each foot is in stance (1 = on the floor).
+    ``contact`` (2,) in [0, 1]: how sure we are that each foot is in stance (1 = flat on the
+    floor); it weights the flat-foot term and, when switched on, the contact weighting.
     """
 
     R_WfromP: FloatArray | None = None
