@@ -254,7 +254,7 @@ def _cmd_infer(args: argparse.Namespace) -> int:
             "frames_in_session": len(session),
             "software": f"gaitnet {__version__}",
         }
-        write_infer_files(result, stage.path, facts)
+        gait = write_infer_files(result, stage.path, facts)
         (stage.path / "infer_config.yaml").write_text(dump_config(cfg))
         out = stage.commit()
     except BaseException:
@@ -271,14 +271,22 @@ def _cmd_infer(args: argparse.Namespace) -> int:
         f"body height {result.subject_height_m:.2f} m; feet seen in {100 * seen[0]:.0f} % (left) "
         f"/ {100 * seen[1]:.0f} % (right) of frames, the rest filled by prediction"
     )
-    for side in ("left", "right"):
-        lengths = [s.length_m for s in result.vio.strides if s.side == side and s.steady]
-        if lengths:
-            print(
-                f"{side:5s} stride length {np.mean(lengths):.3f} ± {np.std(lengths):.3f} m over "
-                f"{len(lengths)} steady strides"
-            )
-        else:
-            print(f"{side:5s} no steady stride")
-    print(f"wrote {out} (joints.npz, feet.csv, strides.csv, summary.json, ...)")
+    _print_gait_summary(gait)
+    print(f"wrote {out} (joints.npz, feet.csv, gait_strides.csv, summary.json, ...)")
+    print(f"gait report: {out / 'report.html'}")
     return 0
+
+
+def _print_gait_summary(gait: dict) -> None:
+    """The time-distance table per side (mean ± SD over steady strides) and the symmetry."""
+    from gaitnet.pipeline.gait_parameters import PARAMETERS
+
+    print(f"{'':28s} {'left':>16s} {'right':>16s} {'SI %':>7s}")
+    for key, label, unit in PARAMETERS:
+        cells = []
+        for side in ("left", "right"):
+            stat = gait.get(side, {}).get(key)
+            cells.append(f"{stat['mean']:.3f} ± {stat['sd']:.3f}" if stat else "–")
+        si = gait.get("symmetry_index_pct", {}).get(key)
+        si_text = "" if si is None else f"{si:+.1f}"
+        print(f"{label + ' [' + unit + ']':28s} {cells[0]:>16s} {cells[1]:>16s} {si_text:>7s}")

@@ -34,7 +34,6 @@ import numpy as np
 from gaitnet.errors import InputError, SessionError
 from gaitnet.geometry import so3_exp, so3_log
 from gaitnet.io.types import Frame, SessionSource
-from gaitnet.motion.heading import normalise_heading
 from gaitnet.motion.onnx_runtime import OnnxPredictor
 from gaitnet.motion.skeleton import LowerBodySkeleton, builtin_skeleton, forward_kinematics
 from gaitnet.pipeline.config import REFERENCE_HEIGHT_M, InferConfig
@@ -45,8 +44,8 @@ from gaitnet.pipeline.pelvis_extrinsic import (
     pelvis_from_camera,
     standing_T_WfromP,
 )
-from gaitnet.pipeline.pose_correction import correct_pose
 from gaitnet.pipeline.pose_residuals import ChainGeometry, ChainState, chain_points
+from gaitnet.pipeline.pose_tracking import track_poses
 from gaitnet.pipeline.pose_types import FrameMeasurements, PoseState, R_PfromSMPL
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
 from gaitnet.vio.result import VioResult
@@ -109,7 +108,6 @@ class InferResult:
     segmenter_path: str
     predictor_path: str
     timings_s: dict[str, float] = field(default_factory=dict)
-    correction_iterations: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
 
 def _contact(vio: VioResult, t_s: np.ndarray) -> np.ndarray:
@@ -170,19 +168,6 @@ def _initial_pose(T_WfromP: np.ndarray, skeleton: LowerBodySkeleton) -> PoseStat
         pose=np.concatenate([root, np.zeros(18)]),
         trans=T_WfromP[:3, 3] - skeleton.rest_joints[0],
     )
-
-
-def _predict(predictor: OnnxPredictor, history: list[PoseState]) -> PoseState:
-    """The predictor's next pose after ``history`` (its last ``n_past`` poses), in the world."""
-    past = np.stack([h.pose for h in history])
-    trans = np.stack([h.trans for h in history])
-    root_n, _, yaw = normalise_heading(past[:, :3], trans, ref=len(past) - 1)
-    window = past.copy()
-    window[:, :3] = root_n
-    nxt = predictor.predict_future(window[None].astype(np.float32))[0, 0].astype(np.float64)
-    root = so3_log(so3_exp(np.array([0.0, 0.0, yaw])) @ so3_exp(nxt[:3]))
-    velocity = trans[-1] - trans[-2] if len(trans) > 1 else np.zeros(3)
-    return PoseState(pose=np.concatenate([root, nxt[3:]]), trans=trans[-1] + velocity)
 
 
 @dataclass
@@ -308,29 +293,27 @@ def reconstruct(
 
     t0 = time.perf_counter()
     n_past = predictor.n_past or 10
-    history = [_initial_pose(T_WfromP[0], skeleton)] * n_past
-    poses = np.zeros((n, 21))
-    trans = np.zeros((n, 3))
-    lengths = np.zeros((n, 4))
-    iterations = np.zeros(n, np.int64)
-    steps: Iterable = range(n)
-    wrap = bar("pose")
-    if wrap is not None:
-        steps = wrap(steps, n)
-    for k in steps:
-        prior = history[-1] if k < n_standing else _predict(predictor, history[-n_past:])
-        meas = FrameMeasurements(
+    start = [_initial_pose(T_WfromP[0], skeleton)] * n_past
+    measurements: Iterable = [
+        FrameMeasurements(
             R_WfromP=T_WfromP[k, :3, :3],
             p_PinW=T_WfromP[k, :3, 3],
             foot_W=measured[k],
             contact=contact[k],
         )
-        pose, info = correct_pose(prior, meas, skeleton, correction)
-        poses[k], trans[k] = pose.pose, pose.trans
-        lengths[k] = info.bone_lengths[0]
-        iterations[k] = int(np.asarray(info.iterations).ravel()[0])
-        history.append(pose)
-        history = history[-n_past:]
+        for k in range(n)
+    ]
+    wrap = bar("pose")
+    if wrap is not None:
+        measurements = wrap(measurements, n)
+
+    def predict(window: np.ndarray) -> np.ndarray:
+        nxt = predictor.predict_future(window[None].astype(np.float32))[0, 0]
+        return nxt.astype(np.float64)
+
+    corrected, _ = track_poses(predict, start, measurements, skeleton, correction)  # type: ignore[arg-type]
+    poses = np.stack([c.pose for c in corrected])
+    trans = np.stack([c.trans for c in corrected])
     timings["pose"] = time.perf_counter() - t0
 
     aa = np.concatenate([poses[:, 3:].reshape(n, 6, 3), np.zeros((n, 2, 3))], axis=1)
@@ -340,10 +323,12 @@ def reconstruct(
         marker_offset=True,
         marker_offset_m=tuple(scale * np.array(cfg.pipeline.marker_offset_m)),
     )
+    geometry = ChainGeometry.build(skeleton, marker)
+    lengths = np.broadcast_to(geometry.lengths, (n, 4)).copy()  # the skeleton's
     state = ChainState(
         R0=so3_exp(poses[:, :3]), t=trans, a=poses[:, 3:].reshape(n, 6, 3), l=lengths
     )
-    feet_W = chain_points(ChainGeometry.build(skeleton, marker), state)["foot"]
+    feet_W = chain_points(geometry, state)["foot"]
     log.info(
         "standing phase %d frames; body height %.2f m; extrinsic spread %.1f mm / %.2f°",
         n_standing,
@@ -369,5 +354,4 @@ def reconstruct(
         segmenter_path=obs.segmenter_path,
         predictor_path=str(predictor.path),
         timings_s=timings,
-        correction_iterations=iterations,
     )

@@ -118,13 +118,15 @@ def result_summary(r: InferResult, session_facts: dict[str, object]) -> dict[str
             "spread_rot_rad": r.extrinsic.spread_rot_rad,
         },
         "feet_measured_fraction": {s: float(v) for s, v in zip(SIDES, seen, strict=True)},
-        "correction_iterations_mean": float(r.correction_iterations.mean()),
         "seconds": r.timings_s,
     }
 
 
-def write_infer_files(r: InferResult, stage: Path, session_facts: dict[str, object]) -> None:
-    """Write the files of the module docstring into the folder ``stage``."""
+def write_infer_files(
+    r: InferResult, stage: Path, session_facts: dict[str, object]
+) -> dict[str, object]:
+    """Write the files of the module docstring into the folder ``stage``; returns the gait
+    summary (:func:`gaitnet.pipeline.gait_parameters.summarise`)."""
     angles = sagittal_angles_deg(r.poses[:, 3:].reshape(-1, 6, 3))
     with open(stage / "joints.npz", "wb") as f:
         np.savez(
@@ -155,6 +157,7 @@ def write_infer_files(r: InferResult, stage: Path, session_facts: dict[str, obje
     summary = result_summary(r, session_facts)
     summary["gait"] = _write_report(r, stage, session_facts, angles)
     (stage / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")
+    return summary["gait"]  # type: ignore[return-value]
 
 
 def _write_report(
