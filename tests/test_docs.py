@@ -27,6 +27,7 @@ from gaitnet.io.types import SessionCalibration
 from gaitnet.pipeline.config import InferConfig
 from gaitnet.sim.config import SimConfig
 from gaitnet.training.predictor import PredictorTrainingConfig
+from gaitnet.training.segmenter import SegmenterTrainingConfig
 from gaitnet.vio.config import VioConfig
 
 ROOT = Path(__file__).parents[1]
@@ -40,6 +41,7 @@ CONFIG_DOC = (ROOT / "docs" / "configs.md").read_text()
 CONFIG_SECTIONS: dict[str, type] = {
     "## Simulator": SimConfig,
     "## Motion predictor training": PredictorTrainingConfig,
+    "## Segmenter training": SegmenterTrainingConfig,
     "## Visual-inertial filter": VioConfig,
     "## Recorded session": SessionCalibration,
     "## Inference": InferConfig,
