@@ -211,16 +211,17 @@ def _cmd_infer(args: argparse.Namespace) -> int:
     from gaitnet.io import open_session
     from gaitnet.io.atomic import StagedFolder, check_output_folder
     from gaitnet.io.images import encode_png
-    from gaitnet.motion.onnx_runtime import OnnxPredictor
     from gaitnet.pipeline.config import InferConfig
-    from gaitnet.pipeline.infer import default_predictor_path, run_infer
-    from gaitnet.pipeline.outputs import write_infer_files
-    from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
-    from gaitnet.segmentation.segment_session import default_segmenter_path
 
     cfg = load_config(InferConfig, args.config, args.overrides)
     check_output_folder(args.out, args.overwrite)
     session = open_session(args.session)
+    # the heavy imports (torch, onnxruntime) once the arguments are known to be good
+    from gaitnet.motion.onnx_runtime import OnnxPredictor
+    from gaitnet.pipeline.infer import default_predictor_path, run_infer
+    from gaitnet.pipeline.outputs import write_infer_files
+    from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
+    from gaitnet.segmentation.segment_session import default_segmenter_path
     threads = cfg.models.threads
     segmenter = OnnxSegmenter(
         args.segmenter or cfg.models.segmenter or default_segmenter_path(), threads=threads
