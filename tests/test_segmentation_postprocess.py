@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -56,13 +57,14 @@ def test_missing_depth_is_flagged_not_nan() -> None:
     depth = np.full((H, W), 0.8, np.float32)
     depth[55:70, :] = 0.0  # no depth around the top keypoint
     depth[80:90, 40:56] = np.nan  # nor the bottom one
-    (foot,) = foot_keypoints(labels, depth, K, NO_FLOOR)
+    small = replace(NO_FLOOR, depth_radius_px=3)  # windows that stay inside the holes
+    (foot,) = foot_keypoints(labels, depth, K, small)
     assert foot.keypoints_C["top"] is None and foot.keypoints_C["bottom"] is None
     assert foot.missing == ("top", "bottom")
     assert np.isfinite(foot.keypoints_C["mid"]).all()
     assert all(np.isfinite(uv).all() for uv in foot.keypoints_px.values())
     depth[:] = 0.0
-    (foot,) = foot_keypoints(labels, depth, K, NO_FLOOR)
+    (foot,) = foot_keypoints(labels, depth, K, small)
     assert foot.missing == ("top", "mid", "bottom") and foot.side in ("left", "right")
 
 
@@ -204,7 +206,7 @@ def test_every_setting_acts() -> None:
     foot = rect(labels, 40, 55, 60, 89)  # 480 px
     depth = np.full((H, W), 0.8, np.float32)
     depth[60:63, 40:56] = 1.0  # 48 px 0.2 m behind
-    base = dict(use_floor=False)
+    base = dict(use_floor=False, depth_radius_px=3)
 
     def run(**kw):
         return foot_keypoints(labels, depth, K, FootKeypointParams(**{**base, **kw}))
