@@ -222,6 +222,7 @@ def _cmd_infer(args: argparse.Namespace) -> int:
     from gaitnet.pipeline.outputs import write_infer_files
     from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
     from gaitnet.segmentation.segment_session import default_segmenter_path
+
     threads = cfg.models.threads
     segmenter = OnnxSegmenter(
         args.segmenter or cfg.models.segmenter or default_segmenter_path(), threads=threads

@@ -15,19 +15,15 @@ input; a non-finite output is never returned.
 
 from __future__ import annotations
 
-import contextlib
-import copy
-import io
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import onnxruntime as ort
 import torch
 
-from gaitnet.errors import InputError, one_line
-from gaitnet.io.atomic import atomic_save
+from gaitnet.errors import one_line
+from gaitnet.io.onnx_export import ExportReport, OnnxParityError, export_onnx_checked
+from gaitnet.io.onnx_session import OnnxInputError, is_ort_error, open_session
 from gaitnet.motion.gcn import DCTGCN
 
 __all__ = [
@@ -44,37 +40,6 @@ INPUT_NAME = "past_poses"
 OUTPUT_NAME = "poses"
 
 
-class OnnxInputError(InputError):
-    """An ONNX model file is unusable or an input does not match what it expects; the one-line
-    message names the model file and the input."""
-
-
-class OnnxParityError(RuntimeError):
-    """The exported graph does not reproduce the PyTorch model within tolerance."""
-
-
-@dataclass(frozen=True)
-class ExportReport:
-    """Result of :func:`export_predictor_onnx`: the file and the parity check it passed."""
-
-    path: Path
-    opset: int
-    max_abs_diff: float
-    batch_sizes: tuple[int, ...]
-
-
-def _is_ort_error(exc: BaseException) -> bool:
-    """onnxruntime's own exceptions (``onnxruntime.capi...Fail``, ``InvalidProtobuf``, ...)."""
-    return type(exc).__module__.startswith("onnxruntime")
-
-
-def _session(path: Path, threads: int) -> ort.InferenceSession:
-    options = ort.SessionOptions()
-    options.intra_op_num_threads = int(threads)
-    options.inter_op_num_threads = 1
-    return ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
-
-
 def export_predictor_onnx(
     model: DCTGCN,
     path: str | Path,
@@ -86,56 +51,28 @@ def export_predictor_onnx(
 ) -> ExportReport:
     """Export ``model`` to ``path`` (one self-contained ``.onnx`` file) and check parity.
 
-    A CPU copy of the model in eval mode is exported (the caller's model is not touched) with
-    ``torch.onnx.export`` (dynamo exporter), a dynamic batch axis, input ``past_poses`` and
-    output ``poses``. The graph is then run with onnxruntime (CPU) on seeded random inputs of
-    each size in ``batch_sizes`` and compared with PyTorch; if the largest absolute difference
+    :func:`gaitnet.io.onnx_export.export_onnx_checked` on a CPU copy of the model in eval mode
+    (the caller's model is not touched): the dynamo exporter with a dynamic batch axis, input
+    ``past_poses`` and output ``poses``; onnxruntime (CPU) is compared with PyTorch on seeded
+    standard-normal inputs of each size in ``batch_sizes``; if the largest absolute difference
     exceeds ``atol`` :class:`OnnxParityError` is raised and ``path`` is left as it was. On
     success the file is renamed into place atomically.
     """
-    path = Path(path)
     cfg = model.config
-    net = copy.deepcopy(model).to("cpu", torch.float32).eval()
-    example = torch.zeros(2, cfg.n_past, cfg.n_nodes)
-    worst = 0.0
 
-    def export_and_check(tmp_name: str) -> None:
-        nonlocal worst
-        # The exporter reports progress on stdout; library code stays quiet.
-        with contextlib.redirect_stdout(io.StringIO()):
-            torch.onnx.export(
-                net,
-                (example,),
-                tmp_name,
-                input_names=[INPUT_NAME],
-                output_names=[OUTPUT_NAME],
-                opset_version=int(opset),
-                dynamo=True,
-                external_data=False,
-                dynamic_shapes=({0: torch.export.Dim("batch")},),
-                verbose=False,
-            )
-        session = _session(Path(tmp_name), threads=1)
-        gen = torch.Generator().manual_seed(seed)
-        for b in batch_sizes:
-            x = torch.randn(int(b), cfg.n_past, cfg.n_nodes, generator=gen)
-            with torch.no_grad():
-                expected = net(x).numpy()
-            (got,) = session.run([OUTPUT_NAME], {INPUT_NAME: x.numpy()})
-            if got.shape != expected.shape:
-                raise OnnxParityError(
-                    f"ONNX export {path}: output shape {got.shape} for batch {b}, "
-                    f"PyTorch gives {expected.shape}"
-                )
-            worst = max(worst, float(np.max(np.abs(got - expected))))
-        if not worst <= atol:
-            raise OnnxParityError(
-                f"ONNX export {path}: max |onnxruntime - torch| = {worst:.3g} exceeds {atol:g}"
-            )
+    def make_input(batch: int, gen: torch.Generator) -> torch.Tensor:
+        return torch.randn(batch, cfg.n_past, cfg.n_nodes, generator=gen)
 
-    atomic_save(path, export_and_check)
-    return ExportReport(
-        path=path, opset=int(opset), max_abs_diff=worst, batch_sizes=tuple(batch_sizes)
+    return export_onnx_checked(
+        model,
+        path,
+        make_input,
+        input_name=INPUT_NAME,
+        output_name=OUTPUT_NAME,
+        opset=opset,
+        atol=atol,
+        batch_sizes=batch_sizes,
+        seed=seed,
     )
 
 
@@ -150,20 +87,7 @@ class OnnxPredictor:
 
     def __init__(self, path: str | Path, threads: int = 1):
         self.path = Path(path)
-        if not isinstance(threads, int) or isinstance(threads, bool) or not 0 <= threads <= 1024:
-            raise OnnxInputError(f"ONNX threads must be an integer in [0, 1024], got {threads!r}")
-        if self.path.is_dir():
-            raise OnnxInputError(f"ONNX model {self.path} is a folder, expected an .onnx file")
-        if not self.path.is_file():
-            raise OnnxInputError(f"ONNX model {self.path} does not exist")
-        try:
-            self.session = _session(self.path, threads)
-        except Exception as exc:
-            if not _is_ort_error(exc):
-                raise
-            raise OnnxInputError(
-                f"ONNX model {self.path} cannot be loaded ({one_line(exc, limit=300)})"
-            ) from exc
+        self.session = open_session(self.path, threads)
         inputs = self.session.get_inputs()
         if len(inputs) != 1:
             names = [i.name for i in inputs]
@@ -232,7 +156,7 @@ class OnnxPredictor:
         try:
             outputs = self.session.run(self.output_names, feed)
         except Exception as exc:
-            if not _is_ort_error(exc):
+            if not is_ort_error(exc):
                 raise
             raise OnnxInputError(
                 f"ONNX model {self.path} failed ({one_line(exc, limit=300)})"
