@@ -11,7 +11,7 @@ validation, test or held-out sets shares a seed with a training frame::
 
 The held-out floor family (``wood``: planks, the only family with long parallel seams and
 wood-grain rings) never appears in training or validation. Split files are text, one frame id
-per line (the format of :func:`gaitnet.segmentation.dataset.read_split`).
+per line (the format of :func:`gaitnet.segmentation.folder_files.read_split`).
 
     python data/make_segmentation_data.py --out data/cache/seg
 

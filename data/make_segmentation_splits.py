@@ -2,7 +2,7 @@
 
 Writes ``train.txt``, ``val.txt`` and ``test.txt`` into FOLDER (one frame id per line): every
 labelled frame (an image with a labelme JSON or a label PNG) goes to a split by a hash of its
-id alone (:func:`gaitnet.segmentation.dataset.default_split`, 80 / 10 / 10 % by default), so
+id alone (:func:`gaitnet.segmentation.folder_files.default_split`, 80 / 10 / 10 % by default), so
 the result is the same on every machine and frames added later never move existing ones.
 Existing split files are kept unless ``--overwrite``. ``--check`` then reads every frame once
 (images, depth, labels, sides, camera.yaml, frames.csv) and fills the HHA cache
@@ -19,8 +19,8 @@ from pathlib import Path
 from tqdm import tqdm
 
 from gaitnet.errors import USER_ERRORS, InputError, user_error_message
-from gaitnet.segmentation.dataset import (
-    SegmentationFolder,
+from gaitnet.segmentation.dataset import SegmentationFolder
+from gaitnet.segmentation.folder_files import (
     default_split,
     list_frames,
     write_split,

@@ -18,8 +18,8 @@ from gaitnet.io.images import encode_png
 from gaitnet.io.labelme_io import labels_txt, read_labelme
 from gaitnet.segmentation import dataset as dataset_module
 from gaitnet.segmentation.augment import AugmentParams, Sample, augment_sample, flip_sides
-from gaitnet.segmentation.dataset import (
-    SegmentationFolder,
+from gaitnet.segmentation.dataset import SegmentationFolder
+from gaitnet.segmentation.folder_files import (
     default_split,
     list_frames,
     read_split,

@@ -29,8 +29,9 @@ fingerprint`), the intrinsics, the frame's gravity and the depth file's bytes: a
 whose hash differs (settings, code version or inputs changed) is recomputed and replaced. A
 folder that cannot be written is read without a cache (logged once).
 
-Splits: :func:`read_split` / :func:`write_split` (text, one id per line, ``#`` comments and
-blank lines ignored). A folder without split files gets :func:`default_split`: each id goes to
+The files are read and checked by :mod:`gaitnet.segmentation.folder_files`. Splits:
+``read_split`` / ``write_split`` (text, one id per line, ``#`` comments and blank lines
+ignored). A folder without split files gets ``default_split``: each id goes to
 train / val / test by a hash of the id alone (80 / 10 / 10 %), so the split is the same on
 every machine and adding frames never moves an existing frame to another split.
 
@@ -43,274 +44,40 @@ values.
 
 from __future__ import annotations
 
-import csv
 import hashlib
-import io
-import json
 import logging
-import math
-import re
 from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
 import numpy as np
 import torch
-import yaml
 
 from gaitnet.errors import InputError
-from gaitnet.io.atomic import atomic_save, atomic_write_text
+from gaitnet.io.atomic import atomic_save
 from gaitnet.io.labelme_io import CLASS_VALUES, read_labelme, read_labels_txt
-from gaitnet.io.types import CameraIntrinsics
 from gaitnet.segmentation.augment import AugmentParams, Sample, augment_sample
+from gaitnet.segmentation.folder_files import (
+    LABEL_VALUES,
+    SIDE_VALUES,
+    check_id,
+    check_size,
+    check_values,
+    find_image,
+    labelme_sides,
+    list_frames,
+    read_camera_yaml,
+    read_gravity_csv,
+    read_image,
+    read_split,
+)
 from gaitnet.segmentation.hha import HhaParams, hha_encode
 
 log = logging.getLogger(__name__)
 
-__all__ = [
-    "SPLIT_FRACTIONS",
-    "SegmentationFolder",
-    "default_split",
-    "list_frames",
-    "read_camera_yaml",
-    "read_gravity_csv",
-    "read_split",
-    "write_split",
-]
+__all__ = ["SegmentationFolder"]
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
-SPLIT_FRACTIONS = {"train": 0.8, "val": 0.1, "test": 0.1}
 HHA_TEXT_KEY = "gaitnet-hha"
-LABEL_VALUES = (0, 1, 2, 255)
-SIDE_VALUES = (0, 1, 2)
-SIDE_NAMES = {"left": 1, "right": 2}
-MAX_ID_LENGTH = 200
-_ID = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
-
-
-# ----------------------------------------------------------------------------------- ids
-
-
-def _check_id(frame_id: str, where: str) -> str:
-    if (
-        not isinstance(frame_id, str)
-        or not _ID.match(frame_id)
-        or ".." in frame_id
-        or len(frame_id) > MAX_ID_LENGTH
-    ):
-        raise InputError(
-            f"{where}: frame id {frame_id!r:.60} is not a plain file name (letters, digits, "
-            "'_', '-', '.'; no '..' or '/')"
-        )
-    return frame_id
-
-
-def read_split(path: str | Path, root: str | Path | None = None) -> list[str]:
-    """Frame ids of a split file (one per line; blank lines and ``#`` comments skipped).
-
-    Ids must be plain file names and unique; with ``root``, each must have an image in
-    ``root/images`` (else an :class:`InputError` naming the split file and the id).
-    """
-    path = Path(path)
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read split file ({exc.strerror})") from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: not UTF-8 text (bad byte at offset {exc.start})") from None
-    ids: list[str] = []
-    seen: set[str] = set()
-    for n, line in enumerate(text.splitlines(), 1):
-        item = line.split("#", 1)[0].strip()
-        if not item:
-            continue
-        _check_id(item, f"{path}:{n}")
-        if item in seen:
-            raise InputError(f"{path}:{n}: frame id {item!r} listed twice")
-        seen.add(item)
-        ids.append(item)
-    if root is not None:
-        for frame_id in ids:
-            if _find_image(Path(root), frame_id) is None:
-                raise InputError(
-                    f"{path}: unknown frame id {frame_id!r} (no image {frame_id}.png or .jpg "
-                    f"in {Path(root) / 'images'})"
-                )
-    return ids
-
-
-def write_split(path: str | Path, ids: Sequence[str]) -> None:
-    """Write a split file (one id per line) atomically; ids are checked as in read_split."""
-    ids = list(ids)
-    for frame_id in ids:
-        _check_id(frame_id, str(path))
-    if len(set(ids)) != len(ids):
-        raise InputError(f"{path}: frame ids listed twice")
-    atomic_write_text(path, "".join(f"{i}\n" for i in ids))
-
-
-def default_split(
-    ids: Sequence[str], fractions: dict[str, float] | None = None
-) -> dict[str, list[str]]:
-    """Deterministic split by a hash of each id alone (module docstring); ids keep their order.
-
-    ``fractions`` (default :data:`SPLIT_FRACTIONS`) maps split name → share (summing to 1).
-    """
-    fractions = fractions or SPLIT_FRACTIONS
-    total = sum(fractions.values())
-    if not fractions or not math.isclose(total, 1.0, abs_tol=1e-6):
-        raise InputError(f"split fractions must sum to 1, got {fractions}")
-    bounds = np.cumsum(list(fractions.values()))
-    out: dict[str, list[str]] = {name: [] for name in fractions}
-    names = list(fractions)
-    for frame_id in ids:
-        digest = hashlib.sha256(f"gaitnet-split:{frame_id}".encode()).digest()
-        x = int.from_bytes(digest[:8], "big") / 2.0**64
-        out[names[min(int(np.searchsorted(bounds, x, side="right")), len(names) - 1)]].append(
-            frame_id
-        )
-    return out
-
-
-def _find_image(root: Path, frame_id: str) -> Path | None:
-    for suffix in IMAGE_SUFFIXES:
-        path = root / "images" / f"{frame_id}{suffix}"
-        if path.is_file():
-            return path
-    return None
-
-
-def list_frames(root: str | Path) -> list[str]:
-    """Sorted ids of the labelled frames: an image with a labelme JSON or a label PNG."""
-    root = Path(root)
-    images = root / "images"
-    if not images.is_dir():
-        raise InputError(f"{root}: no images/ folder (not a segmentation data set)")
-    ids = set()
-    for path in images.iterdir():
-        if path.suffix.lower() not in IMAGE_SUFFIXES or not _ID.match(path.stem):
-            continue
-        if (images / f"{path.stem}.json").is_file() or (
-            root / "labels" / f"{path.stem}.png"
-        ).is_file():
-            ids.add(path.stem)
-    return sorted(ids)
-
-
-# ------------------------------------------------------------------ camera.yaml, frames.csv
-
-
-def read_camera_yaml(path: Path) -> tuple[CameraIntrinsics, float]:
-    """(intrinsics, depth scale [m per unit]) of a folder's camera.yaml."""
-    try:
-        data = yaml.safe_load(path.read_bytes())
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
-    except yaml.YAMLError as exc:
-        raise InputError(f"{path}: not valid YAML ({str(exc).splitlines()[0]})") from None
-    if not isinstance(data, dict):
-        raise InputError(f"{path}: must be a mapping of width, height, fx, fy, cx, cy")
-    keys = ("width", "height", "fx", "fy", "cx", "cy")
-    missing = [k for k in keys if k not in data]
-    if missing:
-        raise InputError(f"{path}: missing key(s) {missing}")
-    unknown = sorted(set(data) - {*keys, "depth_scale_m", "distortion"})
-    if unknown:
-        raise InputError(f"{path}: unknown key(s) {unknown}")
-    try:
-        intr = CameraIntrinsics(**{k: data[k] for k in keys if k in data})
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{path}: {exc}") from None
-    scale = data.get("depth_scale_m", 0.001)
-    if (
-        isinstance(scale, bool)
-        or not isinstance(scale, (int, float))
-        or not math.isfinite(scale)
-        or not 0 < scale <= 1
-    ):
-        raise InputError(f"{path}: depth_scale_m must be within (0, 1] m, got {scale!r}")
-    return intr, float(scale)
-
-
-def read_gravity_csv(path: Path) -> dict[str, np.ndarray | None]:
-    """id → unit gravity (camera frame, pointing down) or None (empty cells) from frames.csv."""
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: not UTF-8 text (bad byte at offset {exc.start})") from None
-    reader = csv.DictReader(io.StringIO(text))
-    cols = ("gravity_cx", "gravity_cy", "gravity_cz")
-    if reader.fieldnames is None or "id" not in reader.fieldnames:
-        raise InputError(f"{path}: needs a header with an 'id' column")
-    if not set(cols) <= set(reader.fieldnames):
-        return {}
-    out: dict[str, np.ndarray | None] = {}
-    for n, row in enumerate(reader, 2):
-        cells = [(row.get(c) or "").strip() for c in cols]
-        frame_id = (row.get("id") or "").strip()
-        if not any(cells):
-            out[frame_id] = None
-            continue
-        try:
-            g = np.array([float(c) for c in cells])
-        except ValueError:
-            raise InputError(f"{path}:{n}: gravity {cells} is not three numbers") from None
-        norm = float(np.linalg.norm(g))
-        if not np.isfinite(g).all() or not 0.5 < norm < 2.0:
-            raise InputError(f"{path}:{n}: gravity {cells} is not a unit vector")
-        out[frame_id] = g / norm
-    return out
-
-
-# ------------------------------------------------------------------------------ readers
-
-
-def _imread(path: Path, flags: int, what: str) -> np.ndarray:
-    if not path.is_file():
-        raise InputError(f"{path}: {what} not found")
-    data = np.fromfile(path, np.uint8)
-    image = cv2.imdecode(data, flags) if data.size else None
-    if image is None:
-        raise InputError(f"{path}: cannot decode {what} (corrupt or not an image)")
-    return image
-
-
-def _check_size(path: Path, image: np.ndarray, intr: CameraIntrinsics, what: str) -> None:
-    if image.shape[:2] != (intr.height, intr.width):
-        raise InputError(
-            f"{path}: {what} is {image.shape[1]}×{image.shape[0]}, expected "
-            f"{intr.width}×{intr.height} (camera.yaml)"
-        )
-
-
-def _check_values(path: Path, image: np.ndarray, allowed: tuple[int, ...], what: str) -> None:
-    bad = np.setdiff1d(np.unique(image), allowed)
-    if bad.size:
-        raise InputError(f"{path}: {what} has values {bad[:5].tolist()}, allowed {allowed}")
-
-
-def _side_of(shape: dict) -> str:
-    group = shape.get("group_id")
-    if group in (1, 2) and not isinstance(group, bool):
-        return "left" if group == 1 else "right"
-    text = str(shape.get("description") or "").lower()
-    has = [name for name in SIDE_NAMES if re.search(rf"\b{name}\b", text)]
-    return has[0] if len(has) == 1 else "none"
-
-
-def labelme_sides(json_path: Path, height: int, width: int) -> np.ndarray:
-    """Side map (uint8) of a labelme JSON already checked by ``read_labelme``."""
-    from labelme.utils import shapes_to_label
-
-    doc = json.loads(json_path.read_bytes().decode("utf-8"))
-    shapes = [{**s, "label": _side_of(s), "group_id": None} for s in doc["shapes"]]
-    side, _ = shapes_to_label((height, width), shapes, {"none": 0, **SIDE_NAMES})
-    return side.astype(np.uint8)
-
-
-# ------------------------------------------------------------------------------ the set
 
 
 def _chw(image: np.ndarray) -> torch.Tensor:
@@ -353,9 +120,9 @@ class SegmentationFolder(torch.utils.data.Dataset):
         elif ids is None:
             self.ids = list_frames(self.root)
         else:
-            self.ids = [_check_id(i, str(self.root)) for i in ids]
+            self.ids = [check_id(i, str(self.root)) for i in ids]
             for frame_id in self.ids:
-                if _find_image(self.root, frame_id) is None:
+                if find_image(self.root, frame_id) is None:
                     raise InputError(
                         f"{self.root / 'images'}: no image for frame id {frame_id!r} "
                         "(.png, .jpg or .jpeg)"
@@ -383,15 +150,15 @@ class SegmentationFolder(torch.utils.data.Dataset):
     # --- files of one frame
 
     def image_path(self, frame_id: str) -> Path:
-        path = _find_image(self.root, frame_id)
+        path = find_image(self.root, frame_id)
         if path is None:
             raise InputError(f"{self.root / 'images'}: no image for frame id {frame_id!r}")
         return path
 
     def read_rgb(self, frame_id: str) -> np.ndarray:
         path = self.image_path(frame_id)
-        bgr = _imread(path, cv2.IMREAD_COLOR, "colour image")
-        _check_size(path, bgr, self.intrinsics, "colour image")
+        bgr = read_image(path, cv2.IMREAD_COLOR, "colour image")
+        check_size(path, bgr, self.intrinsics, "colour image")
         return np.ascontiguousarray(bgr[:, :, ::-1])
 
     def read_depth(self, frame_id: str) -> tuple[np.ndarray, bytes]:
@@ -408,7 +175,7 @@ class SegmentationFolder(torch.utils.data.Dataset):
                 f"{path}: depth must be a single-channel 16-bit PNG, got {image.dtype} "
                 f"with {1 if image.ndim == 2 else image.shape[2]} channels"
             )
-        _check_size(path, image, self.intrinsics, "depth image")
+        check_size(path, image, self.intrinsics, "depth image")
         return image.astype(np.float32) * np.float32(self.depth_scale_m), raw
 
     def read_labels(self, frame_id: str) -> tuple[np.ndarray, np.ndarray]:
@@ -422,7 +189,7 @@ class SegmentationFolder(torch.utils.data.Dataset):
                     f"{json_path}: imagePath names {image.name}, not the frame's image "
                     f"{self.image_path(frame_id).name}"
                 )
-            _check_size(json_path, label, self.intrinsics, "annotation")
+            check_size(json_path, label, self.intrinsics, "annotation")
             side = labelme_sides(json_path, h, w)
         else:
             path = self.root / "labels" / f"{frame_id}.png"
@@ -430,18 +197,18 @@ class SegmentationFolder(torch.utils.data.Dataset):
                 raise InputError(
                     f"{path}: label map not found (and no labelme JSON {json_path.name})"
                 )
-            label = _imread(path, cv2.IMREAD_UNCHANGED, "label map")
+            label = read_image(path, cv2.IMREAD_UNCHANGED, "label map")
             if label.dtype != np.uint8 or label.ndim != 2:
                 raise InputError(f"{path}: label map must be a single-channel 8-bit PNG")
-            _check_size(path, label, self.intrinsics, "label map")
-            _check_values(path, label, LABEL_VALUES, "label map")
+            check_size(path, label, self.intrinsics, "label map")
+            check_values(path, label, LABEL_VALUES, "label map")
             side_path = self.root / "instances" / f"{frame_id}.png"
             if side_path.is_file():
-                side = _imread(side_path, cv2.IMREAD_UNCHANGED, "side map")
+                side = read_image(side_path, cv2.IMREAD_UNCHANGED, "side map")
                 if side.dtype != np.uint8 or side.ndim != 2:
                     raise InputError(f"{side_path}: side map must be a single-channel 8-bit PNG")
-                _check_size(side_path, side, self.intrinsics, "side map")
-                _check_values(side_path, side, SIDE_VALUES, "side map")
+                check_size(side_path, side, self.intrinsics, "side map")
+                check_values(side_path, side, SIDE_VALUES, "side map")
             else:
                 side = np.zeros((h, w), np.uint8)
         side = np.where((label == 1) | (label == 2), side, 0).astype(np.uint8)

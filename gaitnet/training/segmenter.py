@@ -5,7 +5,7 @@
 :func:`gaitnet.config.load_config`.
 
 Data sets are named by a path (:func:`resolve_set`): a split file (text, one frame id per
-line, :func:`gaitnet.segmentation.dataset.read_split`) whose frames lie in the file's folder,
+line, :func:`gaitnet.segmentation.folder_files.read_split`) whose frames lie in the file's folder,
 or a folder (every frame in it). Such a folder is a ``gaitnet simulate-dataset`` output or a
 labelme folder (``data/README.md``); :class:`~gaitnet.segmentation.dataset.SegmentationFolder`
 reads it. The HHA encoding is always :class:`~gaitnet.segmentation.hha.HhaParams`'s defaults,
@@ -37,9 +37,10 @@ from gaitnet.checks import check_int_range, check_range
 from gaitnet.errors import InputError
 from gaitnet.evaluation.segmentation import confusion_matrix, segmentation_scores
 from gaitnet.segmentation.augment import AugmentParams
-from gaitnet.segmentation.dataset import SegmentationFolder, read_split
+from gaitnet.segmentation.dataset import SegmentationFolder
 from gaitnet.segmentation.fcn import ARCHS, SegmenterNet, build_segmenter
 from gaitnet.segmentation.focal_loss import FocalLoss
+from gaitnet.segmentation.folder_files import read_split
 from gaitnet.training.predictor import DEVICE_PATTERN
 
 __all__ = [
