@@ -117,7 +117,10 @@ def check_input(
             f"ONNX model {path}: input {name!r} expects shape {shown}, given {arr.shape}"
         )
     if arr.size == 0:
-        raise OnnxInputError(f"ONNX model {path}: input {name!r} is empty (shape {arr.shape})")
+        what = "an empty batch, " if arr.ndim and arr.shape[0] == 0 else ""
+        raise OnnxInputError(
+            f"ONNX model {path}: input {name!r} is empty ({what}shape {arr.shape})"
+        )
     with np.errstate(over="ignore", invalid="ignore"):
         feed = np.ascontiguousarray(arr, dtype=np.float32)
     bad = ~np.isfinite(feed)

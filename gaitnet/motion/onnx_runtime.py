@@ -21,9 +21,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from gaitnet.errors import one_line
 from gaitnet.io.onnx_export import ExportReport, OnnxParityError, export_onnx_checked
-from gaitnet.io.onnx_session import OnnxInputError, is_ort_error, open_session
+from gaitnet.io.onnx_session import OnnxInputError, check_input, open_session, run_session
 from gaitnet.motion.gcn import DCTGCN
 
 __all__ = [
@@ -113,60 +112,14 @@ class OnnxPredictor:
         d = self.input_shape[1]
         return d if isinstance(d, int) else None
 
-    def _check(self, past: np.ndarray) -> np.ndarray:
-        try:
-            past = np.asarray(past)
-        except (ValueError, TypeError) as exc:  # ragged nested lists
-            raise OnnxInputError(
-                f"ONNX model {self.path}: input {self.input_name!r} is not an array ({exc})"
-            ) from exc
-        if not (np.issubdtype(past.dtype, np.floating) or np.issubdtype(past.dtype, np.integer)):
-            raise OnnxInputError(
-                f"ONNX model {self.path}: input {self.input_name!r} needs real numbers (fed as "
-                f"float32), got dtype {past.dtype}"
-            )
-        expected = self.input_shape
-        ok = past.ndim == len(expected) and all(
-            not isinstance(e, int) or e == g for e, g in zip(expected, past.shape, strict=False)
-        )
-        if not ok:
-            shown = tuple(e if isinstance(e, int) else "batch" for e in expected)
-            raise OnnxInputError(
-                f"ONNX model {self.path}: input {self.input_name!r} expects shape {shown}, "
-                f"given {past.shape}"
-            )
-        if past.shape[0] == 0:
-            raise OnnxInputError(
-                f"ONNX model {self.path}: input {self.input_name!r} has an empty batch"
-            )
-        with np.errstate(over="ignore", invalid="ignore"):
-            feed = np.ascontiguousarray(past, dtype=np.float32)
-        bad = ~np.isfinite(feed)
-        if bad.any():
-            first = tuple(int(i) for i in np.argwhere(bad)[0])
-            raise OnnxInputError(
-                f"ONNX model {self.path}: input {self.input_name!r} holds NaN/inf or values "
-                f"beyond float32's range, first at index {first}"
-            )
-        return feed
-
     def run(self, past: np.ndarray) -> dict[str, np.ndarray]:
-        """All outputs by name for ``past`` (batch, n_past, nodes); every value finite."""
-        feed = {self.input_name: self._check(past)}
-        try:
-            outputs = self.session.run(self.output_names, feed)
-        except Exception as exc:
-            if not is_ort_error(exc):
-                raise
-            raise OnnxInputError(
-                f"ONNX model {self.path} failed ({one_line(exc, limit=300)})"
-            ) from exc
-        for name, value in zip(self.output_names, outputs, strict=True):
-            if not np.all(np.isfinite(value)):
-                raise OnnxInputError(
-                    f"ONNX model {self.path}: output {name!r} is not finite for a finite input "
-                    "(a broken model file?)"
-                )
+        """All outputs by name for ``past`` (batch, n_past, nodes); every value finite
+        (:func:`gaitnet.io.onnx_session.check_input`, :func:`~gaitnet.io.onnx_session.
+        run_session`)."""
+        feed = check_input(
+            past, self.path, self.input_name, self.input_shape, ("batch", "n_past", "nodes")
+        )
+        outputs = run_session(self.session, self.path, {self.input_name: feed}, self.output_names)
         return dict(zip(self.output_names, outputs, strict=True))
 
     def __call__(self, past: np.ndarray) -> np.ndarray:
