@@ -1,7 +1,7 @@
 """FCN-8s on torchvision's VGG16 and the RGB / HHA / late-fusion segmenter
 (gaitnet.segmentation.fcn): the published architecture (layer shapes, parameter count), exact
-output sizes, bilinear upsampling, late fusion as a sum, width scaling, input scaling, local
-VGG16 weights and checkpoints."""
+output sizes, aligned score maps for both paddings, bilinear upsampling, late fusion as a sum,
+width scaling, input scaling, local VGG16 weights and checkpoints."""
 
 from __future__ import annotations
 
@@ -17,6 +17,7 @@ from torch.nn import functional as nnf
 from gaitnet.errors import ConfigError, InputError
 from gaitnet.segmentation.fcn import (
     ARCHS,
+    PADDINGS,
     FCN8s,
     SegmenterNet,
     bilinear_kernel,
@@ -111,10 +112,62 @@ def test_feature_map_sizes_at_640x480() -> None:
     assert sizes == expected == [(339, 419), (170, 210), (85, 105), (43, 53), (22, 27)]
 
 
+def test_same_padding_feature_map_sizes_at_640x480() -> None:
+    """conv1_1 padded by 1 keeps 480 × 640; then ceil(x / 2) five times."""
+    with torch.device("meta"):
+        stream = FCN8s(3, padding="same")
+        h = torch.empty(1, 3, 480, 640)
+        sizes = []
+        for layer in stream.features:
+            h = layer(h)
+            if isinstance(layer, nn.MaxPool2d):
+                sizes.append(tuple(h.shape[2:]))
+        assert stream(torch.empty(1, 3, 480, 640)).shape == (1, 3, 480, 640)
+        assert stream.fc6(torch.empty(1, 512, 15, 20)).shape == (1, 4096, 15, 20)
+    assert sizes == [(240, 320), (120, 160), (60, 80), (30, 40), (15, 20)]
+    assert n_params(FCN8s(3, padding="same")) == published_count(3)
+
+
+def _linear_stream(padding: str, path: str) -> FCN8s:
+    """A stream made linear (average instead of max pooling, positive constant weights, zero
+    biases: the ReLUs pass everything) whose output is one score path alone."""
+    stream = FCN8s(1, width=SMALL, padding=padding).eval()
+    for i, layer in enumerate(stream.features):
+        if isinstance(layer, nn.MaxPool2d):
+            stream.features[i] = nn.AvgPool2d(2, 2, ceil_mode=True)
+    with torch.no_grad():
+        for m in [*stream.features, stream.fc6, stream.fc7]:
+            if isinstance(m, nn.Conv2d):
+                m.weight.fill_(1.0 / m.weight[0].numel())
+                m.bias.zero_()
+        for name in ("score_fr", "score_pool4", "score_pool3"):
+            layer = getattr(stream, name)
+            layer.weight.fill_(1.0 if name == path else 0.0)
+            layer.bias.zero_()
+    return stream
+
+
+@pytest.mark.parametrize("padding", PADDINGS)
+@pytest.mark.parametrize("path", ["score_fr", "score_pool4", "score_pool3"])
+def test_score_paths_are_aligned_with_the_input(padding: str, path: str) -> None:
+    """Each score path of a linearised stream answers a 2 × 2 impulse at the centre of a
+    256 × 256 input with a response centred on it: an offset one cell off moves it by 0.8–10
+    pixels (checked by hand), the sampling grid's phase by < 0.25."""
+    x = torch.zeros(1, 3, 256, 256)
+    x[..., 127:129, 127:129] = 1.0
+    with torch.no_grad():
+        y = _linear_stream(padding, path)(x)[0, 0].double()
+    assert y.shape == (256, 256) and float(y.min()) >= 0.0
+    idx = torch.arange(256, dtype=torch.float64)
+    centre = (float((y.sum(1) * idx).sum() / y.sum()), float((y.sum(0) * idx).sum() / y.sum()))
+    assert centre == pytest.approx((127.5, 127.5), abs=0.25)
+
+
 @pytest.mark.parametrize("arch", ARCHS)
 @pytest.mark.parametrize("scale", [1.0, 0.5])
-def test_output_is_exactly_the_input_size(arch: str, scale: float) -> None:
-    net = randomise(SegmenterNet(arch, width=SMALL, input_scale=scale))
+@pytest.mark.parametrize("padding", PADDINGS)
+def test_output_is_exactly_the_input_size(arch: str, scale: float, padding: str) -> None:
+    net = randomise(SegmenterNet(arch, width=SMALL, input_scale=scale, padding=padding))
     for h, w in [(1, 1), (37, 53), (31, 66), (97, 130)]:
         x = torch.rand(2, input_channels(arch), h, w)
         with torch.no_grad():
@@ -229,6 +282,7 @@ def test_width_scales_every_layer() -> None:
         {"arch": "rgb", "input_scale": 2.0},
         {"arch": "rgb", "num_classes": 1},
         {"arch": "rgb", "num_classes": 2.5},
+        {"arch": "rgb", "padding": "valid"},
     ],
 )
 def test_bad_config_is_a_config_error(kwargs: dict) -> None:
@@ -265,6 +319,21 @@ def test_checkpoint_round_trip() -> None:
         segmenter_from_checkpoint({"model": {}, "config": {"model": cfg}}, "run/best.pt")
     with pytest.raises(InputError, match="config.model"):
         segmenter_from_checkpoint({"model": {}, "config": {}}, "run/best.pt")
+
+
+def test_checkpoint_keeps_the_padding() -> None:
+    """A checkpoint's padding is rebuilt; one written before the option is the published net."""
+    net = randomise(SegmenterNet("hha", width=SMALL, padding="same"), seed=4)
+    ckpt = {"model": net.state_dict(), "config": {"model": net.config()}}
+    back = segmenter_from_checkpoint(ckpt)
+    assert back.padding == "same" and back.hha is not None
+    assert back.hha.features[0].padding == (1, 1) and back.hha.fc6.padding == (3, 3)
+    x = torch.rand(1, 3, 40, 56)
+    with torch.no_grad():
+        assert torch.equal(back(x), net(x))
+    old = {k: v for k, v in net.config().items() if k != "padding"}
+    legacy = segmenter_from_checkpoint({"model": ckpt["model"], "config": {"model": old}})
+    assert legacy.padding == "published" and legacy.hha.features[0].padding == (100, 100)
 
 
 class _NotWeights:

@@ -57,7 +57,8 @@ def test_parity_dynamic_batch_and_metadata(exported) -> None:
     seg = OnnxSegmenter(path, threads=2)
     assert (seg.arch, seg.channels, seg.height, seg.width) == ("fusion", 6, H, W)
     assert seg.classes == ("background", "foot", "leg")
-    assert seg.metadata["gaitnet.input_scale"] == "0.5"
+    assert seg.metadata["gaitnet.input_scale"] == "0.5" and seg.input_scale == 0.5
+    assert seg.metadata["gaitnet.padding"] == "published"
     assert seg.metadata["gaitnet.width"] == "0.0625"
     assert json.loads(seg.metadata["gaitnet.normalisation"])["rgb"]["mean"] == [0.485, 0.456, 0.406]
     x = np.random.default_rng(1).random((3, 6, H, W), dtype=np.float32)
@@ -166,6 +167,15 @@ def test_foreign_files_and_options(tmp_path: Path, exported) -> None:
         with pytest.raises(OnnxInputError, match=match) as err:
             OnnxSegmenter(path)
         _one_line(err, path)
+    for scale in ("0", "1.5", "half"):  # the HHA stride follows it: refused when meaningless
+        model = onnx.load(good)
+        for prop in model.metadata_props:
+            if prop.key == "gaitnet.input_scale":
+                prop.value = scale
+        onnx.save(model, tmp_path / "scale.onnx")
+        with pytest.raises(OnnxInputError, match="gaitnet.input_scale") as err:
+            OnnxSegmenter(tmp_path / "scale.onnx")
+        _one_line(err, tmp_path / "scale.onnx")
     with pytest.raises(OnnxInputError, match="not available"):
         OnnxSegmenter(good, providers=("NoSuchExecutionProvider",))
     with pytest.raises(OnnxInputError, match="threads"):

@@ -221,6 +221,11 @@ def test_model_keys_build_that_model() -> None:
     net = build_model(_cfg("model.arch=hha", "model.width=0.0625", "model.input_scale=0.5",
                            "model.num_classes=4").model)  # fmt: skip
     assert (net.arch, net.width, net.input_scale, net.num_classes) == ("hha", 0.0625, 0.5, 4)
+    assert net.padding == "published" and net.hha.features[0].padding == (100, 100)
+    same = build_model(_cfg("model.width=0.0625", "model.padding=same").model)
+    assert same.padding == "same" and same.rgb.features[0].padding == (1, 1)
+    with pytest.raises(ConfigError, match="model.padding"):
+        _cfg("model.padding=valid")
     with pytest.raises(ConfigError, match="model.vgg16_weights"):
         _cfg("model.width=0.5", "model.vgg16_weights=/nonexistent.pth")
     with pytest.raises(InputError, match="nonexistent"):  # width 1: the file is read

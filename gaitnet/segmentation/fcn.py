@@ -15,6 +15,16 @@ the input's size for any input size. Score layers start at zero, as in the refer
 ``width`` scales every channel count (``max(1, round(c * width))``): 1.0 is the published net
 (for GPUs), 1/8 or 1/16 make CPU-sized variants.
 
+``padding`` "published" is the reference net's geometry above: ``conv1_1`` padded by 100 and an
+unpadded 7×7 ``fc6``, so every layer works on the input plus a 100-pixel border (a 320×240
+input is 520×440 at ``conv1_1``: 3× its pixels). "same" pads ``conv1_1`` by 1 (as in VGG16)
+and ``fc6`` by 3, so the layers see only the input; the score maps are then aligned by the
+offsets 1 (into ``upscore2``), 1 (into ``upscore_pool4``) and 4 (output), found like the
+published ones by following each layer's map from its index to input pixels (a 3×3 conv with
+padding 1 keeps the centre, a 2×2 pool of stride 2 maps ``i`` to ``2i + ½``, a transposed conv
+of stride ``s`` and size ``2s`` maps ``j`` to ``(j − s + ½) / s``): the same algebra gives 5,
+9, 31 for the published padding. Same parameters, about a third of the computation.
+
 :class:`SegmenterNet` wraps one stream (``arch`` "rgb" or "hha") or two (``"fusion"``: the
 RGB and HHA streams' class score maps are summed, the thesis's late fusion, trained jointly).
 It takes channels in [0, 1] (RGB/255, HHA/255, or both concatenated), normalises them itself
@@ -72,6 +82,14 @@ VGG16_CFG: tuple[int | str, ...] = tuple(tv_vgg.cfgs["D"])
 FC_CHANNELS = 4096
 #: The published crops (offsets into the larger map) of FCN-8s.
 CROP_POOL4, CROP_POOL3, CROP_OUT = 5, 9, 31
+#: ``padding`` choices (module docstring).
+PADDINGS = ("published", "same")
+#: Per padding: (conv1_1 padding, fc6 padding, (offset into upscore2, into score_pool4),
+#: (offset into upscore_pool4, into score_pool3), output crop).
+_GEOMETRY: dict[str, tuple[int, int, tuple[int, int], tuple[int, int], int]] = {
+    "published": (100, 0, (0, CROP_POOL4), (0, CROP_POOL3), CROP_OUT),
+    "same": (1, 3, (1, 0), (1, 0), 4),
+}
 
 
 def input_channels(arch: str) -> int:
@@ -139,23 +157,30 @@ class FCN8s(nn.Module):
     """
 
     def __init__(
-        self, num_classes: int = 3, width: float = 1.0, in_channels: int = 3, dropout: float = 0.5
+        self,
+        num_classes: int = 3,
+        width: float = 1.0,
+        in_channels: int = 3,
+        dropout: float = 0.5,
+        padding: str = "published",
     ) -> None:
         super().__init__()
+        self.padding = _check_padding(padding)
+        pad1, pad6, self._fuse4, self._fuse3, self._crop = _GEOMETRY[padding]
         cfg = [v if v == "M" else scaled_channels(int(v), width) for v in VGG16_CFG]
         self.features = tv_vgg.make_layers(cfg)
         first = self.features[0]
         assert isinstance(first, nn.Conv2d)
         if in_channels != 3:
             self.features[0] = first = nn.Conv2d(in_channels, first.out_channels, 3)
-        first.padding = (100, 100)  # conv1_1: padding 100 (the published net)
+        first.padding = (pad1, pad1)  # conv1_1: 100 in the published net
         pools = [i for i, m in enumerate(self.features) if isinstance(m, nn.MaxPool2d)]
         for i in pools:
             self.features[i].ceil_mode = True
         self._pool3, self._pool4 = pools[2], pools[3]
         c3, c4, c5 = (scaled_channels(c, width) for c in (256, 512, 512))
         fc = scaled_channels(FC_CHANNELS, width)
-        self.fc6 = nn.Conv2d(c5, fc, 7)  # 1/32
+        self.fc6 = nn.Conv2d(c5, fc, 7, padding=pad6)  # 1/32
         self.relu6 = nn.ReLU(inplace=True)
         self.drop6 = nn.Dropout(dropout)
         self.fc7 = nn.Conv2d(fc, fc, 1)
@@ -197,16 +222,26 @@ class FCN8s(nn.Module):
                 pool4 = h  # 1/16
         h = self.drop6(self.relu6(self.fc6(h)))  # 1/32
         h = self.drop7(self.relu7(self.fc7(h)))
-        upscore2 = self.upscore2(self.score_fr(h))  # 1/16
-        s4 = self.score_pool4(pool4)
-        s4 = s4[:, :, CROP_POOL4 : CROP_POOL4 + upscore2.shape[2]]
-        s4 = s4[:, :, :, CROP_POOL4 : CROP_POOL4 + upscore2.shape[3]]
-        upscore_pool4 = self.upscore_pool4(upscore2 + s4)  # 1/8
-        s3 = self.score_pool3(pool3)
-        s3 = s3[:, :, CROP_POOL3 : CROP_POOL3 + upscore_pool4.shape[2]]
-        s3 = s3[:, :, :, CROP_POOL3 : CROP_POOL3 + upscore_pool4.shape[3]]
-        out = self.upscore8(upscore_pool4 + s3)  # 1/1
-        return out[:, :, CROP_OUT : CROP_OUT + x.shape[2], CROP_OUT : CROP_OUT + x.shape[3]]
+        fused4 = _fuse(self.upscore2(self.score_fr(h)), self.score_pool4(pool4), self._fuse4)
+        fused3 = _fuse(self.upscore_pool4(fused4), self.score_pool3(pool3), self._fuse3)  # 1/8
+        out = self.upscore8(fused3)  # 1/1
+        c = self._crop
+        return out[:, :, c : c + x.shape[2], c : c + x.shape[3]]
+
+
+def _fuse(up: torch.Tensor, skip: torch.Tensor, offsets: tuple[int, int]) -> torch.Tensor:
+    """``up + skip`` on their overlap once ``up`` is shifted by ``offsets[0]`` and ``skip`` by
+    ``offsets[1]`` (the aligned crops of the module docstring)."""
+    a, b = offsets
+    h = min(up.shape[2] - a, skip.shape[2] - b)
+    w = min(up.shape[3] - a, skip.shape[3] - b)
+    return up[:, :, a : a + h, a : a + w] + skip[:, :, b : b + h, b : b + w]
+
+
+def _check_padding(padding: Any) -> str:
+    if padding not in PADDINGS:
+        raise ConfigError(f"segmenter padding must be one of {list(PADDINGS)}, got {padding!r}")
+    return padding
 
 
 class SegmenterNet(nn.Module):
@@ -219,17 +254,24 @@ class SegmenterNet(nn.Module):
     """
 
     def __init__(
-        self, arch: str, width: float = 1.0, num_classes: int = 3, input_scale: float = 1.0
+        self,
+        arch: str,
+        width: float = 1.0,
+        num_classes: int = 3,
+        input_scale: float = 1.0,
+        padding: str = "published",
     ) -> None:
         super().__init__()
         self.arch = _check_arch(arch)
+        self.padding = _check_padding(padding)
         self.width = _check_real("segmenter width", width, 0.0, 1.0, open_lo=True)
         self.input_scale = _check_real("segmenter input_scale", input_scale, 0.0, 1.0, True)
         if isinstance(num_classes, bool) or not isinstance(num_classes, int) or num_classes < 2:
             raise ConfigError(f"segmenter num_classes must be an integer ≥ 2, got {num_classes!r}")
         self.num_classes = num_classes
-        self.rgb = FCN8s(num_classes, width) if arch in ("rgb", "fusion") else None
-        self.hha = FCN8s(num_classes, width) if arch in ("hha", "fusion") else None
+        streams = ("rgb", "fusion"), ("hha", "fusion")
+        self.rgb = FCN8s(num_classes, width, padding=padding) if arch in streams[0] else None
+        self.hha = FCN8s(num_classes, width, padding=padding) if arch in streams[1] else None
         mean = (RGB_MEAN if self.rgb else ()) + (HHA_MEAN if self.hha else ())
         std = (RGB_STD if self.rgb else ()) + (HHA_STD if self.hha else ())
         # Constants of the architecture, not learned state: kept out of state dicts.
@@ -247,6 +289,7 @@ class SegmenterNet(nn.Module):
             "width": self.width,
             "num_classes": self.num_classes,
             "input_scale": self.input_scale,
+            "padding": self.padding,
         }
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -310,6 +353,7 @@ def build_segmenter(
     num_classes: int = 3,
     input_scale: float = 1.0,
     vgg16_weights: str | Path | None = None,
+    padding: str = "published",
 ) -> SegmenterNet:
     """A :class:`SegmenterNet`, optionally started from local ImageNet VGG16 weights
     (:func:`gaitnet.segmentation.vgg16_weights.read_vgg16_weights`, read before the net is
@@ -320,7 +364,9 @@ def build_segmenter(
             f"1.0, not width {width!r}"
         )
     state = None if vgg16_weights is None else read_vgg16_weights(vgg16_weights)
-    net = SegmenterNet(arch, width=width, num_classes=num_classes, input_scale=input_scale)
+    net = SegmenterNet(
+        arch, width=width, num_classes=num_classes, input_scale=input_scale, padding=padding
+    )
     if state is not None:
         load_vgg16_weights(net, state)
     return net
@@ -329,7 +375,8 @@ def build_segmenter(
 def segmenter_from_checkpoint(ckpt: Mapping[str, Any], source: str = "checkpoint") -> SegmenterNet:
     """The trained :class:`SegmenterNet` of a checkpoint dict written by
     ``train/segmenter.py``: ``ckpt["config"]["model"]`` gives ``arch``, ``width``,
-    ``num_classes``, ``input_scale``; ``ckpt["model"]`` the state dict. ``source`` (the file)
+    ``num_classes``, ``input_scale`` and ``padding`` ("published" when absent: checkpoints from
+    before the option); ``ckpt["model"]`` the state dict. ``source`` (the file)
     names the checkpoint in errors. Returned in eval mode on the CPU."""
     if not isinstance(ckpt, Mapping):
         raise InputError(f"{source}: not a checkpoint dict")
@@ -346,6 +393,7 @@ def segmenter_from_checkpoint(ckpt: Mapping[str, Any], source: str = "checkpoint
             width=model_cfg["width"],
             num_classes=model_cfg["num_classes"],
             input_scale=model_cfg["input_scale"],
+            padding=model_cfg.get("padding", "published"),
         )
     except ConfigError as exc:
         raise InputError(f"{source}: config.model: {exc}") from exc

@@ -8,8 +8,8 @@ with a dynamic batch and a fixed frame size (640 × 480 by default). The export
 refused, and nothing is written, unless onnxruntime reproduces PyTorch within ``atol`` (max
 absolute logit difference, default 1e-4) on random inputs; the file is written atomically.
 What a runtime must know is stored in the model's ``metadata_props`` (:data:`METADATA_KEYS`):
-``gaitnet.model`` = ``segmenter``, the arch, width, input scale, class names, the input's
-channels and the normalisation applied inside the graph.
+``gaitnet.model`` = ``segmenter``, the arch, width, input scale, padding, class names, the
+input's channels and the normalisation applied inside the graph.
 
 :class:`OnnxSegmenter` runs such a file on explicit providers with a set thread count; a file
 that is missing, unreadable or not a gaitnet segmenter, and an input of the wrong rank, shape or
@@ -67,6 +67,7 @@ METADATA_KEYS = (
     "gaitnet.arch",
     "gaitnet.width",
     "gaitnet.input_scale",
+    "gaitnet.padding",
     "gaitnet.classes",
     "gaitnet.input",
     "gaitnet.normalisation",
@@ -96,6 +97,7 @@ def segmenter_metadata(model: SegmenterNet, classes: Sequence[str]) -> dict[str,
         "gaitnet.arch": model.arch,
         "gaitnet.width": repr(model.width),
         "gaitnet.input_scale": repr(model.input_scale),
+        "gaitnet.padding": model.padding,
         "gaitnet.classes": json.dumps(list(classes)),
         "gaitnet.input": f"float32 (batch, {model.in_channels}, H, W) in [0, 1]: "
         + _CHANNELS[model.arch],
@@ -152,8 +154,8 @@ class OnnxSegmenter:
     """Run an exported segmenter with onnxruntime.
 
     ``threads`` sets onnxruntime's intra-op threads (0: its default), ``providers`` the
-    execution providers in order. :attr:`arch`, :attr:`channels`, :attr:`classes` and the
-    frame size (:attr:`height`, :attr:`width`) come from the file.
+    execution providers in order. :attr:`arch`, :attr:`channels`, :attr:`classes`,
+    :attr:`input_scale` and the frame size (:attr:`height`, :attr:`width`) come from the file.
     """
 
     def __init__(
@@ -181,6 +183,17 @@ class OnnxSegmenter:
         if not isinstance(classes, list) or not all(isinstance(c, str) for c in classes):
             raise OnnxInputError(f"ONNX model {self.path}: metadata gaitnet.classes is not a list")
         self.classes: tuple[str, ...] = tuple(classes)
+        try:
+            scale = float(self.metadata.get("gaitnet.input_scale", "1.0"))
+        except ValueError:
+            scale = float("nan")
+        if not 0 < scale <= 1:
+            raise OnnxInputError(
+                f"ONNX model {self.path}: metadata gaitnet.input_scale must be a number in "
+                f"(0, 1], got {self.metadata.get('gaitnet.input_scale')!r}"
+            )
+        self.input_scale: float = scale
+        """The factor by which the graph resizes its input before the streams (HHA stride)."""
         inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
         if len(inputs) != 1 or len(outputs) != 1:
             raise OnnxInputError(

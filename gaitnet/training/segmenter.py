@@ -38,9 +38,10 @@ from gaitnet.errors import InputError
 from gaitnet.evaluation.segmentation import confusion_matrix, segmentation_scores
 from gaitnet.segmentation.augment import AugmentParams
 from gaitnet.segmentation.dataset import SegmentationFolder
-from gaitnet.segmentation.fcn import ARCHS, SegmenterNet, build_segmenter
+from gaitnet.segmentation.fcn import ARCHS, PADDINGS, SegmenterNet, build_segmenter
 from gaitnet.segmentation.focal_loss import FocalLoss
 from gaitnet.segmentation.folder_files import read_split
+from gaitnet.segmentation.hha import hha_stride
 from gaitnet.training.predictor import DEVICE_PATTERN
 
 __all__ = [
@@ -96,10 +97,13 @@ class ModelConfig:
     input_scale: float = 1.0
     num_classes: int = 3
     vgg16_weights: Path | None = None
+    padding: Literal["published", "same"] = "published"
 
     def __post_init__(self) -> None:
         if self.arch not in ARCHS:
             raise ValueError(f"model.arch must be one of {ARCHS}, got {self.arch!r}")
+        if self.padding not in PADDINGS:
+            raise ValueError(f"model.padding must be one of {PADDINGS}, got {self.padding!r}")
         check_range("model.width", self.width, 1e-3, 1.0)
         check_range("model.input_scale", self.input_scale, 0.05, 1.0)
         check_int_range("model.num_classes", self.num_classes, 2, 255)
@@ -267,10 +271,18 @@ def resolve_set(path: Path) -> tuple[Path, list[str] | None]:
 def build_dataset(
     path: Path, cfg: SegmenterTrainingConfig, augment: bool, seed: int = 0
 ) -> SegmentationFolder:
-    """The set at ``path`` (:func:`resolve_set`), with ``data.augment`` when ``augment``."""
+    """The set at ``path`` (:func:`resolve_set`), with ``data.augment`` when ``augment``; HHA
+    at the resolution the model's streams see (:func:`~gaitnet.segmentation.hha.hha_stride`)."""
     root, ids = resolve_set(path)
     params = cfg.data.augment if augment else None
-    return SegmentationFolder(root, ids, augment=params, cache_hha=cfg.data.cache_hha, seed=seed)
+    return SegmentationFolder(
+        root,
+        ids,
+        augment=params,
+        cache_hha=cfg.data.cache_hha,
+        seed=seed,
+        hha_stride=hha_stride(cfg.model.input_scale),
+    )
 
 
 # --------------------------------------------------------------------------- model, optim
@@ -284,6 +296,7 @@ def build_model(cfg: ModelConfig) -> SegmenterNet:
         num_classes=cfg.num_classes,
         input_scale=cfg.input_scale,
         vgg16_weights=cfg.vgg16_weights,
+        padding=cfg.padding,
     )
 
 
