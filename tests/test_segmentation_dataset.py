@@ -183,6 +183,14 @@ def test_hha_cache_is_used_and_refreshed_when_stale(
     (root / "depth" / "000000.png").write_bytes(encode_png((depth * 0.9).astype(np.uint16)))
     changed = SegmentationFolder(root, ["000000"], hha=params)[0]["hha"].numpy()
     assert not np.array_equal(changed, other.numpy())
+    # another HHA stride → recomputed: the strided encoding of the same depth
+    strided = SegmentationFolder(root, ["000000"], hha=params, hha_stride=2)
+    halved = strided[0]["hha"].numpy()
+    depth_m, _ = strided.read_depth("000000")
+    expected = hha_encode(depth_m, strided.K, strided.gravity.get("000000"), params, stride=2)
+    assert np.array_equal(halved, torch.from_numpy(np.moveaxis(expected, 2, 0)).float() / 255.0)
+    assert not np.array_equal(halved, changed)
+    assert np.array_equal(SegmentationFolder(root, ["000000"], hha=params)[0]["hha"], changed)
     # a garbage cache file is replaced
     cached.write_bytes(b"not a png")
     assert np.array_equal(SegmentationFolder(root, ["000000"], hha=params)[0]["hha"], changed)

@@ -9,7 +9,13 @@ import pytest
 
 from gaitnet.errors import InputError
 from gaitnet.geometry.floor_plane import FloorPlane
-from gaitnet.segmentation.hha import HhaParams, hha_decode, hha_encode, surface_normals
+from gaitnet.segmentation.hha import (
+    HhaParams,
+    hha_decode,
+    hha_encode,
+    hha_stride,
+    surface_normals,
+)
 
 W, H, F = 320, 240, 200.0
 K = np.array([[F, 0.0, (W - 1) / 2], [0.0, F, (H - 1) / 2], [0.0, 0.0, 1.0]])
@@ -235,3 +241,42 @@ def test_every_setting_acts() -> None:
     a = hha_encode(wall, K, g, HhaParams(lowest_point_percentile=0.0))
     b = hha_encode(wall, K, g, HhaParams(lowest_point_percentile=20.0))
     assert (a[..., 1] != b[..., 1]).any()
+
+
+def test_stride_encodes_the_sampled_grid_and_repeats_it() -> None:
+    """Stride 2 is the encoding of every other pixel (with K and the normal window scaled),
+    each code repeated over its 2 × 2 block; on the ray-cast scene its heights and angles are
+    still the true ones."""
+    depth, R, height_true, face = scene(60.0)
+    g = gravity_C(R)
+    params = HhaParams()
+    strided = hha_encode(depth, K, g, params, stride=2)
+    assert strided.shape == (H, W, 3) and strided.dtype == np.uint8
+    K_half = K.copy()
+    K_half[:2] /= 2
+    half_params = HhaParams(normal_step_px=2, normal_window_px=5)  # 3 / 2 → 2, 9 / 2 → 5
+    direct = hha_encode(depth[::2, ::2], K_half, g, half_params)
+    for dv in (0, 1):
+        for du in (0, 1):
+            assert np.array_equal(strided[dv::2, du::2], direct)
+    _, height, angle = hha_decode(strided[::2, ::2])  # at the pixels sampled
+    valid = depth[::2, ::2] > 0
+    assert np.abs(height - height_true[::2, ::2])[valid].max() <= 0.5 * HEIGHT_STEP + 1e-3
+    assert np.abs(angle[interior(face[::2, ::2] == 0, 6)]).max() <= 1.0
+    assert np.abs(angle[interior(face[::2, ::2] == 1, 6)] - 90.0).max() <= 1.0
+    # an odd size keeps its shape (the last row and column are their block's first)
+    odd = hha_encode(depth[:-1, :-1], K, g, params, stride=2)
+    assert odd.shape == (H - 1, W - 1, 3)
+    assert np.array_equal(odd, strided[:-1, :-1])
+    assert np.array_equal(hha_encode(depth, K, g, params, stride=1), hha_encode(depth, K, g))
+
+
+def test_hha_stride_follows_the_model_input_scale() -> None:
+    assert [hha_stride(s) for s in (1.0, 0.75, 0.5, 0.4, 1 / 3, 0.25)] == [1, 1, 2, 2, 3, 4]
+    for bad in (0.0, 1.5, float("nan"), "0.5"):
+        with pytest.raises(InputError, match="input_scale"):
+            hha_stride(bad)  # type: ignore[arg-type]
+    depth, R, _, _ = scene(60.0)
+    for bad_stride in (0, -1, 1.5, True):
+        with pytest.raises(InputError, match="stride"):
+            hha_encode(depth, K, gravity_C(R), stride=bad_stride)  # type: ignore[arg-type]

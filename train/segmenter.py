@@ -562,6 +562,8 @@ def eval_only(cfg: SegmenterTrainingConfig, args: argparse.Namespace, device: to
         if net.arch != cfg.model.arch:
             logger.warning("%s is a %s model (config says %s)", source, net.arch, cfg.model.arch)
             cfg = replace(cfg, model=replace(cfg.model, arch=net.arch))
+        if net.input_scale != cfg.model.input_scale:  # the HHA stride follows the model
+            cfg = replace(cfg, model=replace(cfg.model, input_scale=net.input_scale))
 
         def predict(batch: dict[str, Any]) -> torch.Tensor:
             x = model_input(net.arch, batch["rgb"], batch["hha"]).numpy().astype(np.float32)

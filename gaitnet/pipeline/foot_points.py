@@ -3,11 +3,11 @@
 With the filter's camera pose ``T_WfromC`` the floor is known in the camera frame (the world
 floor ``z = 0``: normal ``n_C = R_WfromCᵀ e_z``, camera height ``h = z`` of the camera centre,
 thesis (3.22)) and so is gravity (``R_WfromCᵀ (0, 0, −1)``): HHA is encoded with both
-(:func:`~gaitnet.segmentation.hha.hha_encode`), the segmenter labels the frame, the
-post-processing finds each foot's keypoints of eq. 4.1 with their camera-frame points
-(:func:`~gaitnet.segmentation.postprocess.foot_keypoints`), and the chosen keypoint of each
-sided foot is moved to the world. Feet whose side the post-processing could not tell are
-given the side of the nearer predicted foot when one is given, else dropped.
+(:func:`~gaitnet.segmentation.hha.hha_encode`, at the resolution the model's streams see), the
+segmenter labels the frame, the post-processing finds each foot's keypoints of eq. 4.1 with
+their camera-frame points (:func:`~gaitnet.segmentation.postprocess.foot_keypoints`), and the
+chosen keypoint of each sided foot is moved to the world. Feet whose side the post-processing
+could not tell are given the side of the nearer predicted foot when one is given, else dropped.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 
 from gaitnet.geometry.floor_plane import FloorPlane
 from gaitnet.io.types import Frame
-from gaitnet.segmentation.hha import HhaParams, hha_encode
+from gaitnet.segmentation.hha import HhaParams, hha_encode, hha_stride
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
 from gaitnet.segmentation.postprocess import FootKeypointParams, foot_keypoints
 from gaitnet.segmentation.segment_session import network_input
@@ -62,7 +62,8 @@ def measure_feet(
     T = np.asarray(T_WfromC, dtype=np.float64)
     plane = floor_in_camera(T)
     gravity_C = -plane.n_C
-    hha = hha_encode(frame.depth_m, K, gravity_C, hha_params, plane=plane)
+    stride = hha_stride(segmenter.input_scale)
+    hha = hha_encode(frame.depth_m, K, gravity_C, hha_params, plane=plane, stride=stride)
     labels = segmenter.predict(network_input(segmenter.arch, frame.rgb, hha))[0]
     feet = foot_keypoints(labels, frame.depth_m, K, feet_params, gravity_C=gravity_C, plane=plane)
     foot_W = np.full((2, 3), np.nan)

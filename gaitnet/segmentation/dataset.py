@@ -25,7 +25,8 @@ are kept only on foot and leg pixels.
 HHA (:func:`gaitnet.segmentation.hha.hha_encode`) is computed once per frame and cached in
 ``hha/<id>.png`` inside the folder (written atomically). The PNG carries a text chunk
 ``gaitnet-hha`` with a hash of the HHA settings (:meth:`~gaitnet.segmentation.hha.HhaParams.
-fingerprint`), the intrinsics, the frame's gravity and the depth file's bytes: a cache entry
+fingerprint`), the HHA stride (``hha_stride``: the model's, :func:`~gaitnet.segmentation.hha.
+hha_stride`), the intrinsics, the frame's gravity and the depth file's bytes: a cache entry
 whose hash differs (settings, code version or inputs changed) is recomputed and replaced. A
 folder that cannot be written is read without a cache (logged once).
 
@@ -93,7 +94,8 @@ class SegmentationFolder(torch.utils.data.Dataset):
     (every labelled frame, :func:`list_frames`). ``augment``: training augmentations
     (:mod:`gaitnet.segmentation.augment`) or None. Item ``k`` is a dict: ``rgb`` float32 (3, H,
     W) in [0, 1], ``hha`` float32 (3, H, W) in [0, 1] (HHA / 255), ``label`` int64 (H, W) (255
-    ignore), ``side`` int64 (H, W), ``id`` str.
+    ignore), ``side`` int64 (H, W), ``id`` str. ``hha_stride``: HHA of every ``hha_stride``-th
+    pixel, repeated (:func:`~gaitnet.segmentation.hha.hha_encode`).
 
     Augmentation randomness: after :meth:`set_epoch`, item ``k`` draws from a generator seeded
     by ``(seed, epoch, k)`` (the same augmentation in every process, worker and after a resume,
@@ -111,6 +113,7 @@ class SegmentationFolder(torch.utils.data.Dataset):
         hha: HhaParams | None = None,
         cache_hha: bool = True,
         seed: int = 0,
+        hha_stride: int = 1,
     ) -> None:
         self.root = Path(root)
         if not self.root.is_dir():
@@ -129,6 +132,7 @@ class SegmentationFolder(torch.utils.data.Dataset):
                     )
         self.augment = augment
         self.hha_params = hha or HhaParams()
+        self.hha_stride = int(hha_stride)
         self.cache_hha = cache_hha
         self.seed = int(seed)
         self.epoch: int | None = None
@@ -219,6 +223,7 @@ class SegmentationFolder(torch.utils.data.Dataset):
         g = self.gravity.get(frame_id)
         parts = [
             self.hha_params.fingerprint(),
+            f"stride {self.hha_stride}",
             np.round(self.K, 9).tobytes().hex(),
             "none" if g is None else np.round(g, 9).tobytes().hex(),
             repr(self.depth_scale_m),
@@ -226,11 +231,15 @@ class SegmentationFolder(torch.utils.data.Dataset):
         ]
         return hashlib.sha256("|".join(parts).encode()).hexdigest()[:32]
 
+    def _encode(self, frame_id: str, depth: np.ndarray) -> np.ndarray:
+        gravity = self.gravity.get(frame_id)
+        return hha_encode(depth, self.K, gravity, self.hha_params, stride=self.hha_stride)
+
     def read_hha(self, frame_id: str) -> np.ndarray:
         """The frame's HHA (H, W, 3) uint8, from the cache when it is current."""
         depth, raw = self.read_depth(frame_id)
         if not self.cache_hha:
-            return hha_encode(depth, self.K, self.gravity.get(frame_id), self.hha_params)
+            return self._encode(frame_id, depth)
         from PIL import Image, UnidentifiedImageError
         from PIL.PngImagePlugin import PngInfo
 
@@ -245,7 +254,7 @@ class SegmentationFolder(torch.utils.data.Dataset):
                             return hha
             except (UnidentifiedImageError, OSError, SyntaxError, ValueError):
                 log.info("%s: unreadable HHA cache entry, recomputing", path)
-        hha = hha_encode(depth, self.K, self.gravity.get(frame_id), self.hha_params)
+        hha = self._encode(frame_id, depth)
         info = PngInfo()
         info.add_text(HHA_TEXT_KEY, key)
         try:

@@ -46,6 +46,13 @@ jump larger than ``max_depth_jump`` × z per pixel (an object's silhouette) or t
 depth are dropped; the unit normals are then averaged over a ``normal_window_px`` box (OpenCV) and
 renormalised. A pixel whose window holds no usable difference has angle 0 (unknown). Skew in
 ``K`` is ignored.
+
+``stride`` > 1 encodes every ``stride``-th pixel of every ``stride``-th row (the depth sampled,
+not averaged: no mixing across a silhouette; ``K``, ``normal_step_px`` and ``normal_window_px``
+scaled to match) and repeats each code over its ``stride × stride`` block, so the result keeps
+the frame's size. A segmenter whose streams see the frame resized by ``input_scale`` 0.5 sees
+exactly that half-resolution HHA (its bilinear halving averages 2 × 2 equal codes):
+:func:`hha_stride` gives the stride that matches a model, at a quarter of the cost.
 """
 
 from __future__ import annotations
@@ -71,6 +78,7 @@ __all__ = [
     "find_floor",
     "hha_decode",
     "hha_encode",
+    "hha_stride",
     "surface_normals",
 ]
 
@@ -235,20 +243,56 @@ def find_floor(
     return fit_floor_depth(depth_m, K, prior, floor)
 
 
+def hha_stride(input_scale: float) -> int:
+    """The HHA ``stride`` for a segmenter that resizes its input by ``input_scale``: the whole
+    number of frame pixels per stream pixel, rounded down (1 for scales above 1/2)."""
+    if not (isinstance(input_scale, (int, float)) and 0 < input_scale <= 1):
+        raise InputError(f"HHA: input_scale must be in (0, 1], got {input_scale!r}")
+    return max(1, int(1.0 / input_scale + 1e-6))
+
+
+def _strided(
+    depth_m: np.ndarray, K: np.ndarray, params: HhaParams, stride: int
+) -> tuple[np.ndarray, np.ndarray, HhaParams]:
+    """Every ``stride``-th depth pixel, the camera matrix of that grid and the normal window
+    scaled to it (odd, ≥ 1)."""
+    K_s = np.array(K, dtype=np.float64)
+    K_s[:2] /= stride
+    window = 2 * round((params.normal_window_px / stride - 1) / 2) + 1
+    scaled = replace(
+        params,
+        normal_step_px=max(1, round(params.normal_step_px / stride)),
+        normal_window_px=max(1, window),
+    )
+    return np.asarray(depth_m)[::stride, ::stride], K_s, scaled
+
+
 def hha_encode(
     depth_m: np.ndarray,
     K: np.ndarray,
     gravity_C: np.ndarray | None = None,
     params: HhaParams | None = None,
     plane: FloorPlane | None = None,
+    stride: int = 1,
 ) -> np.ndarray:
     """HHA image (H, W, 3) uint8 of a depth image in metres (0 or non-finite = invalid).
 
     ``gravity_C``: unit gravity (pointing down) in the camera frame, or None without an IMU;
-    ``plane``: a known floor (skips the fit). Module docstring for the channels and fallbacks.
-    Bad arrays raise :class:`~gaitnet.errors.InputError`.
+    ``plane``: a known floor (skips the fit); ``stride``: encode every ``stride``-th pixel and
+    repeat it (module docstring). Module docstring for the channels and fallbacks. Bad arrays
+    raise :class:`~gaitnet.errors.InputError`.
     """
     params = params or HhaParams()
+    if isinstance(stride, bool) or not isinstance(stride, int) or stride < 1:
+        raise InputError(f"HHA: stride must be a whole number ≥ 1, got {stride!r}")
+    if stride > 1:
+        shape = np.shape(depth_m)
+        if len(shape) != 2:
+            raise InputError(f"HHA: depth must be an (H, W) image, got shape {shape}")
+        small_depth, K_s, small_params = _strided(depth_m, K, params, stride)
+        small = hha_encode(small_depth, K_s, gravity_C, small_params, plane)
+        big = np.repeat(np.repeat(small, stride, axis=0), stride, axis=1)
+        return np.ascontiguousarray(big[: shape[0], : shape[1]])
     z, K, up = _check_inputs(depth_m, K, gravity_C)
     H, W = z.shape
     valid = z > 0

@@ -2,7 +2,8 @@
 
 Per frame: the gravity direction in the camera frame (the accelerometer averaged over a window
 centred on the frame, :func:`accelerometer_gravity_C`), HHA (:func:`~gaitnet.segmentation.hha.
-hha_encode`), the segmenter (onnxruntime, :class:`~gaitnet.segmentation.onnx_runtime.
+hha_encode`, at the resolution the model's streams see: :func:`~gaitnet.segmentation.hha.
+hha_stride`), the segmenter (onnxruntime, :class:`~gaitnet.segmentation.onnx_runtime.
 OnnxSegmenter`), and the foot keypoints of sec. 4.1.4 (:func:`~gaitnet.segmentation.
 postprocess.foot_keypoints`). Written into a staging folder that appears at the output path only
 when complete (:func:`gaitnet.io.atomic.staged_folder`):
@@ -38,7 +39,7 @@ from gaitnet.io.atomic import staged_folder
 from gaitnet.io.contact_sheet import colourise_labels, contact_sheet, write_png
 from gaitnet.io.images import encode_png
 from gaitnet.io.types import ImuSamples, SessionSource
-from gaitnet.segmentation.hha import HhaParams, find_floor, hha_encode
+from gaitnet.segmentation.hha import HhaParams, find_floor, hha_encode, hha_stride
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
 from gaitnet.segmentation.postprocess import FootKeypointParams, foot_keypoints
 
@@ -160,6 +161,7 @@ def segment_session(
         frames: Iterable = session.frames()
         if progress is not None:
             frames = progress(frames, n)
+        stride = hha_stride(segmenter.input_scale)
         for k, frame in enumerate(frames):
             t0 = time.perf_counter()
             gravity = accelerometer_gravity_C(
@@ -168,7 +170,7 @@ def segment_session(
             no_gravity += gravity is None
             up = None if gravity is None else -gravity
             plane = find_floor(frame.depth_m, K, up, hha_params)  # one fit for HHA and the feet
-            hha = hha_encode(frame.depth_m, K, gravity, hha_params, plane=plane)
+            hha = hha_encode(frame.depth_m, K, gravity, hha_params, plane=plane, stride=stride)
             t1 = time.perf_counter()
             labels = segmenter.predict(network_input(segmenter.arch, frame.rgb, hha))[0]
             t2 = time.perf_counter()

@@ -1,0 +1,65 @@
+"""Step 2 of gaitnet infer (gaitnet.pipeline.foot_points): the HHA handed to the segmenter is
+encoded at the resolution the model's streams see, with the floor and gravity of the camera
+pose."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gaitnet.io.types import Frame
+from gaitnet.pipeline.config import InferConfig
+from gaitnet.pipeline.foot_points import floor_in_camera, measure_feet
+from gaitnet.segmentation.hha import hha_encode
+
+H, W, F = 96, 128, 100.0
+K = np.array([[F, 0.0, (W - 1) / 2], [0.0, F, (H - 1) / 2], [0.0, 0.0, 1.0]])
+
+
+class RecordingSegmenter:
+    """Labels everything background and keeps the input it was given."""
+
+    arch = "hha"
+    path = "recording"
+
+    def __init__(self, input_scale: float) -> None:
+        self.input_scale = input_scale
+        self.inputs: list[np.ndarray] = []
+
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        self.inputs.append(x)
+        return np.zeros((x.shape[0], x.shape[2], x.shape[3]), np.uint8)
+
+
+def floor_frame() -> tuple[Frame, np.ndarray]:
+    """A camera 1 m above the floor, pitched 60° down, seeing only the floor (ray-cast)."""
+    t = np.radians(60.0)
+    R = np.stack(
+        [[0.0, -1.0, 0.0], [-np.sin(t), 0.0, -np.cos(t)], [np.cos(t), 0.0, -np.sin(t)]], axis=1
+    )
+    T = np.eye(4)
+    T[:3, :3], T[2, 3] = R, 1.0
+    v, u = np.mgrid[0:H, 0:W].astype(np.float64)
+    rays = np.stack([(u - K[0, 2]) / F, (v - K[1, 2]) / F, np.ones_like(u)], axis=-1) @ R.T
+    depth = np.where(rays[..., 2] < -0.05, -1.0 / rays[..., 2], 0.0)
+    depth = np.where(depth < 6.0, depth, 0.0).astype(np.float32)
+    rgb = np.full((H, W, 3), 128, np.uint8)
+    return Frame(index=0, t_ns=0, rgb=rgb, depth_m=depth), T
+
+
+@pytest.mark.parametrize(("scale", "stride"), [(1.0, 1), (0.5, 2)])
+def test_hha_is_encoded_at_the_models_resolution(scale: float, stride: int) -> None:
+    frame, T = floor_frame()
+    cfg = InferConfig()
+    seg = RecordingSegmenter(scale)
+    feet = measure_feet(frame, K, T, seg, "mid", cfg.hha, cfg.feet)  # type: ignore[arg-type]
+    assert np.isnan(feet.foot_W).all() and feet.n_blobs == 0  # nothing labelled foot
+    (x,) = seg.inputs
+    plane = floor_in_camera(T)
+    expected = hha_encode(frame.depth_m, K, -plane.n_C, cfg.hha, plane=plane, stride=stride)
+    assert x.shape == (1, 3, H, W)
+    np.testing.assert_array_equal(
+        np.round(x[0] * 255.0).astype(np.uint8), expected.transpose(2, 0, 1)
+    )
+    blocks = x[0, :, ::2, ::2]
+    assert np.array_equal(x[0, :, 1::2, 1::2], blocks) == (stride == 2)
