@@ -5,6 +5,7 @@ helpers give known answers."""
 from __future__ import annotations
 
 import csv
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -164,3 +165,48 @@ def test_workers_act_and_do_not_change_the_result(
     assert seen == [1, 3]
     np.testing.assert_array_equal(one.foot_W, three.foot_W)
     np.testing.assert_array_equal(one.t_ns, three.t_ns)
+
+
+def test_feet_measured_on_the_filter_pose_end_on_the_smoothed_one(
+    tiny_sim_session: Path, tiny_segmenter: Path, monkeypatch
+) -> None:
+    """The frames are segmented with the filter's pose while it runs; a point the segmenter
+    finds at a fixed place in the camera frame ends at the smoothed camera pose's world point."""
+    import gaitnet.pipeline.infer as infer
+    from gaitnet.config import load_config
+    from gaitnet.pipeline.foot_points import FrameFeet
+    from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
+
+    p_C = np.array([[0.1, 0.5, 1.0], [-0.1, 0.45, 0.9]])
+    poses_seen: list[np.ndarray] = []
+
+    def fixed_feet(frame, K, T_WfromC, *args, **kwargs) -> FrameFeet:
+        poses_seen.append(np.array(T_WfromC))
+        foot_W = p_C @ T_WfromC[:3, :3].T + T_WfromC[:3, 3]
+        if frame.index % 3 == 0:
+            foot_W[1] = np.nan  # a foot not seen stays not seen
+        return FrameFeet(foot_W, np.zeros(frame.depth_m.shape, np.uint8), 2)
+
+    real_run_vio = infer.run_vio
+
+    def smoothed_elsewhere(*args, **kwargs):
+        """The filter's result with a smoothed trajectory 3 cm and 2° away from the filter's."""
+        result = real_run_vio(*args, **kwargs)
+        shift = np.eye(4)
+        shift[:3, :3], shift[:3, 3] = so3_exp(np.radians([0.0, 0.0, 2.0])), [0.03, -0.02, 0.01]
+        return replace(result, T_WfromC_smoothed=shift @ result.T_WfromC_filter)
+
+    monkeypatch.setattr(infer, "measure_feet", fixed_feet)
+    monkeypatch.setattr(infer, "run_vio", smoothed_elsewhere)
+    cfg = load_config(InferConfig, None, ["pipeline.workers=2"])
+    obs = infer.observe(open_session(tiny_sim_session), cfg, OnnxSegmenter(tiny_segmenter))
+    vio = obs.vio
+    np.testing.assert_allclose(np.array(poses_seen), vio.T_WfromC_filter, atol=1e-12)
+    expected = np.einsum("kij,sj->ksi", vio.T_WfromC_smoothed[:, :3, :3], p_C)
+    expected += vio.T_WfromC_smoothed[:, None, :3, 3]
+    unseen = vio.session_index % 3 == 0
+    np.testing.assert_allclose(obs.foot_W[~unseen], expected[~unseen], atol=1e-9)
+    np.testing.assert_allclose(obs.foot_W[unseen, 0], expected[unseen, 0], atol=1e-9)
+    assert np.isnan(obs.foot_W[unseen, 1]).all()
+    assert list(obs.t_ns) == list(open_session(tiny_sim_session).frame_times_ns[vio.session_index])
+    assert obs.timings_s["segmenter_cpu"] >= 0 and obs.timings_s["filter"] > 0

@@ -190,9 +190,17 @@ def test_frames_without_depth_and_an_imu_gap_are_survived(tiny_sim_session: Path
             return dataclasses.replace(f, depth_m=np.zeros_like(f.depth_m))
         return f
 
-    result = run_vio(_Edited(source, imu=holed, frame_edit=no_depth), VioConfig())
+    seen: list[tuple[int, np.ndarray]] = []
+    result = run_vio(
+        _Edited(source, imu=holed, frame_edit=no_depth),
+        VioConfig(),
+        on_frame=lambda frame, T: seen.append((frame.index, T.copy())),
+    )
     assert _finite(result)
     assert result.skipped["frame"]["no floor plane"] >= 4
+    # on_frame: once per processed frame, in order, with the filter's pose of that frame
+    assert [i for i, _ in seen] == list(result.session_index)
+    np.testing.assert_allclose(np.array([T for _, T in seen]), result.T_WfromC_filter, atol=1e-12)
 
 
 def test_textureless_floor_runs_to_the_end_with_odometry_skips(tmp_path: Path) -> None:

@@ -3,8 +3,9 @@
 
 1. The filter and smoother (:func:`gaitnet.vio.run.run_vio`): camera trajectory, stance feet,
    strides.
-2. Per processed frame, the measured foot points in the world
-   (:func:`gaitnet.pipeline.foot_points.measure_feet`, HHA with the filter's gravity and floor).
+2. Per processed frame, while the filter goes on (:func:`observe`), the measured foot points
+   in the world (:func:`gaitnet.pipeline.foot_points.measure_feet`, HHA with the filter's
+   gravity and floor), moved to the smoothed camera pose once the smoother has run.
 3. The standing phase at the start (the camera still, at most ``pipeline.standing_s``) gives the
    subject's skeleton (body height from the camera height unless configured) and the
    camera-to-pelvis extrinsic (:mod:`gaitnet.pipeline.pelvis_extrinsic`): the standing skeleton
@@ -190,56 +191,71 @@ def observe(
     progress: Callable[[str], Progress] | None = None,
     keep_labels: Callable[[int, np.ndarray], None] | None = None,
 ) -> Observations:
-    """Steps 1–2 (module docstring): the filter and smoother, then the measured feet."""
-    timings: dict[str, float] = {}
+    """Steps 1–2 (module docstring), side by side: the filter hands each frame it has processed,
+    with its camera pose, to ``pipeline.workers`` segmentation threads (onnxruntime, OpenCV and
+    most of numpy release the GIL) and goes on; HHA takes the filter's gravity and floor. At
+    most ``2 × workers`` frames wait, so the filter is held back when the segmenter lags. Once
+    the smoother has run, each measured foot point is moved from the filter's camera pose to
+    the smoothed one (``T_s T_f⁻¹``: the point stays where it is in the camera frame).
+
+    ``timings_s``: ``filter`` (wall seconds of the filter and smoother, the segmentation
+    running beside it), ``segmenter_wait`` (wall seconds spent on the last frames after the
+    filter), ``segmenter_cpu`` (CPU seconds of the segmentation threads, summed).
+    """
+    timings: dict[str, float] = {"segmenter_cpu": 0.0}
 
     def bar(stage: str) -> Progress | None:
         return progress(stage) if progress is not None else None
 
-    t0 = time.perf_counter()
-    vio = run_vio(session, cfg.vio, progress=bar("filter"))
-    timings["filter"] = time.perf_counter() - t0
+    K = session.calibration.color.K
+    workers = cfg.pipeline.workers
+    T_filter: list[np.ndarray] = []
+    feet_f: list[np.ndarray] = []
+    frame_ns: list[int] = []
+    pending: deque[Future] = deque()
+
+    def one(frame: Frame, T_WfromC: np.ndarray) -> tuple[int, FrameFeet, float]:
+        tic = time.thread_time()
+        feet = measure_feet(
+            frame, K, T_WfromC, segmenter, cfg.pipeline.foot_keypoint, cfg.hha, cfg.feet
+        )
+        return frame.t_ns, feet, time.thread_time() - tic
+
+    def take_until(n_left: int) -> None:
+        while len(pending) > n_left:
+            t_ns, feet, cpu_s = pending.popleft().result()
+            feet_f.append(feet.foot_W)
+            frame_ns.append(t_ns)
+            timings["segmenter_cpu"] += cpu_s
+            if keep_labels is not None:
+                keep_labels(t_ns, feet.labels)
+
+    pool = ThreadPoolExecutor(max_workers=workers)
+    try:
+
+        def on_frame(frame: Frame, T_WfromC: np.ndarray) -> None:
+            T_filter.append(T_WfromC.copy())
+            pending.append(pool.submit(one, frame, T_WfromC.copy()))
+            take_until(2 * workers)
+
+        t0 = time.perf_counter()
+        vio = run_vio(session, cfg.vio, progress=bar("filter"), on_frame=on_frame)
+        timings["filter"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        take_until(0)
+        timings["segmenter_wait"] = time.perf_counter() - t0
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
     n = len(vio.t_s)
     if n < 2:
         raise SessionError(f"the filter processed {n} frame(s); need at least 2")
-    index_of = {int(i): k for k, i in enumerate(vio.session_index)}
-    K = session.calibration.color.K
-    t0 = time.perf_counter()
-    measured = np.full((n, 2, 3), np.nan)
-    t_ns = np.zeros(n, np.int64)
-    frames: Iterable = session.frames()
-    wrap = bar("segmenter")
-    if wrap is not None:
-        frames = wrap(frames, len(session))
-
-    def one(frame: Frame, k: int) -> tuple[Frame, int, FrameFeet]:
-        feet = measure_feet(
-            frame, K, vio.T_WfromC[k], segmenter, cfg.pipeline.foot_keypoint, cfg.hha, cfg.feet
-        )
-        return frame, k, feet
-
-    def done(frame: Frame, k: int, feet: FrameFeet) -> None:
-        measured[k] = feet.foot_W
-        t_ns[k] = frame.t_ns
-        if keep_labels is not None:
-            keep_labels(frame.t_ns, feet.labels)
-
-    # frames in flight on ``pipeline.workers`` threads (onnxruntime, OpenCV and most of numpy
-    # release the GIL), results taken in order; at most 2 per worker are held in memory
-    workers = cfg.pipeline.workers
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        pending: deque[Future] = deque()
-        for frame in frames:
-            k = index_of.get(frame.index)
-            if k is None:
-                continue
-            pending.append(pool.submit(one, frame, k))
-            while len(pending) > 2 * workers:
-                done(*pending.popleft().result())
-        while pending:
-            done(*pending.popleft().result())
-    timings["segmenter"] = time.perf_counter() - t0
-    return Observations(vio, t_ns, measured, str(segmenter.path), timings)
+    if len(feet_f) != n:  # run_vio calls on_frame once per processed frame
+        raise RuntimeError(f"segmented {len(feet_f)} frames, the filter processed {n}")
+    T_f = np.array(T_filter)
+    T_move = vio.T_WfromC @ np.linalg.inv(T_f)  # filter pose → smoothed pose, per frame
+    measured = np.einsum("kij,ksj->ksi", T_move[:, :3, :3], np.array(feet_f))
+    measured += T_move[:, None, :3, 3]
+    return Observations(vio, np.array(frame_ns, np.int64), measured, str(segmenter.path), timings)
 
 
 def run_infer(

@@ -107,8 +107,18 @@ def _frames(source: SessionSource, progress: Progress | None) -> Iterator[Frame]
     yield from it
 
 
-def run_vio(source: SessionSource, cfg: VioConfig, progress: Progress | None = None) -> VioResult:
-    """Run the filter, the smoother and the gait analysis on ``source`` (module docstring)."""
+def run_vio(
+    source: SessionSource,
+    cfg: VioConfig,
+    progress: Progress | None = None,
+    on_frame: Callable[[Frame, np.ndarray], None] | None = None,
+) -> VioResult:
+    """Run the filter, the smoother and the gait analysis on ``source`` (module docstring).
+
+    ``on_frame(frame, T_WfromC)``: called once per processed frame, in order, with the frame and
+    the filter's camera pose after its updates (e.g. to segment the frame while the filter goes
+    on: ``gaitnet infer``); the frame is not decoded twice.
+    """
     from gaitnet.vio.apriltags import detect_board_pose, imu_pose_from_camera
     from gaitnet.vio.foot_model import foot_measurement, landmark_from_observation
     from gaitnet.vio.stance_tracker import StanceTracker
@@ -281,6 +291,8 @@ def run_vio(source: SessionSource, cfg: VioConfig, progress: Progress | None = N
         covariance.clone(state)
         processed.append(k)
         T_WfromI_f.append(_T_WfromI(state))
+        if on_frame is not None:
+            on_frame(frame, T_WfromI_f[-1] @ T_IfromC)
         T_WfromC_b.append(_T_WfromI(baseline) @ T_IfromC)
         cov_p.append(state.P[3:6, 3:6].copy())
         prev = frame
