@@ -115,3 +115,14 @@ def test_segment_errors_are_one_line(
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and message in err
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("arch", ["rgb", "hha", "fusion"])
+def test_network_input_is_the_channel_planes_over_255(arch: str) -> None:
+    rng = np.random.default_rng(2)
+    rgb, hha = (rng.integers(0, 256, (5, 7, 3), dtype=np.uint8) for _ in range(2))
+    parts = {"rgb": [rgb], "hha": [hha], "fusion": [rgb, hha]}[arch]
+    expected = np.concatenate(parts, axis=2).transpose(2, 0, 1)[None] / np.float32(255.0)
+    x = network_input(arch, rgb, hha)
+    assert x.dtype == np.float32 and x.flags.c_contiguous
+    np.testing.assert_allclose(x, expected, rtol=1e-6)

@@ -24,6 +24,7 @@ from gaitnet.segmentation.fcn import SegmenterNet
 from gaitnet.segmentation.onnx_runtime import (
     OnnxParityError,
     OnnxSegmenter,
+    argmax_classes,
     export_segmenter_onnx,
 )
 from gaitnet.training.checkpoint import save_checkpoint
@@ -244,3 +245,12 @@ def test_export_script_errors(tmp_path: Path, capsys) -> None:
     other = _checkpoint(tmp_path / "other", net, {"n_past": 10})
     assert script.main(["segmenter", "--checkpoint", str(other), "--out", str(out)]) == 1
     assert "config.model lacks key(s)" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("classes", [2, 3, 5])
+def test_argmax_classes_is_numpys_argmax_ties_included(classes: int) -> None:
+    rng = np.random.default_rng(classes)
+    logits = rng.integers(-2, 3, (2, classes, 7, 9)).astype(np.float32)  # many ties
+    labels = argmax_classes(logits)
+    assert labels.dtype == np.uint8 and labels.shape == (2, 7, 9)
+    np.testing.assert_array_equal(labels, np.argmax(logits, axis=1))
