@@ -63,3 +63,19 @@ def test_hha_is_encoded_at_the_models_resolution(scale: float, stride: int) -> N
     )
     blocks = x[0, :, ::2, ::2]
     assert np.array_equal(x[0, :, 1::2, 1::2], blocks) == (stride == 2)
+
+
+def test_running_the_pipeline_does_not_import_pytorch() -> None:
+    """The ONNX runtimes and the pipeline load without PyTorch (about 2 s of start-up);
+    only the exports import it."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "import gaitnet.pipeline.infer, gaitnet.pipeline.outputs, gaitnet.cli.commands\n"
+        "import gaitnet.segmentation.onnx_runtime, gaitnet.motion.onnx_runtime\n"
+        "print(sorted(m for m in ('torch', 'torchvision') if m in sys.modules))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

@@ -17,13 +17,17 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
 
 from gaitnet.io.onnx_export import ExportReport, OnnxParityError, export_onnx_checked
 from gaitnet.io.onnx_session import OnnxInputError, check_input, open_session, run_session
-from gaitnet.motion.gcn import DCTGCN
+
+if TYPE_CHECKING:  # PyTorch is imported only to export: running a model does not need it
+    import torch
+
+    from gaitnet.motion.gcn import DCTGCN
 
 __all__ = [
     "INPUT_NAME",
@@ -57,6 +61,8 @@ def export_predictor_onnx(
     exceeds ``atol`` :class:`OnnxParityError` is raised and ``path`` is left as it was. On
     success the file is renamed into place atomically.
     """
+    import torch
+
     cfg = model.config
 
     def make_input(batch: int, gen: torch.Generator) -> torch.Tensor:

@@ -49,6 +49,15 @@ from torch.nn import functional as nnf
 from torchvision.models import vgg as tv_vgg
 
 from gaitnet.errors import ConfigError, InputError, one_line
+from gaitnet.segmentation.channels import (
+    ARCHS,
+    HHA_MEAN,
+    HHA_STD,
+    RGB_MEAN,
+    RGB_STD,
+    check_arch,
+    input_channels,
+)
 from gaitnet.segmentation.vgg16_weights import load_vgg16_weights, read_vgg16_weights
 
 __all__ = [
@@ -68,15 +77,6 @@ __all__ = [
     "segmenter_from_checkpoint",
 ]
 
-ARCHS = ("rgb", "hha", "fusion")
-
-#: ImageNet statistics torchvision's VGG16 weights were trained with (channels in [0, 1]).
-RGB_MEAN = (0.485, 0.456, 0.406)
-RGB_STD = (0.229, 0.224, 0.225)
-#: Fixed normalisation of HHA/255: maps [0, 1] to [-2, 2], the spread of normalised RGB.
-HHA_MEAN = (0.5, 0.5, 0.5)
-HHA_STD = (0.25, 0.25, 0.25)
-
 #: torchvision's VGG16 layer list ("D": channels, "M" = 2×2 max pooling).
 VGG16_CFG: tuple[int | str, ...] = tuple(tv_vgg.cfgs["D"])
 FC_CHANNELS = 4096
@@ -90,18 +90,6 @@ _GEOMETRY: dict[str, tuple[int, int, tuple[int, int], tuple[int, int], int]] = {
     "published": (100, 0, (0, CROP_POOL4), (0, CROP_POOL3), CROP_OUT),
     "same": (1, 3, (1, 0), (1, 0), 4),
 }
-
-
-def input_channels(arch: str) -> int:
-    """Input channels of ``arch``: 3 (rgb), 3 (hha), 6 (fusion: RGB then HHA)."""
-    _check_arch(arch)
-    return 6 if arch == "fusion" else 3
-
-
-def _check_arch(arch: Any) -> str:
-    if arch not in ARCHS:
-        raise ConfigError(f"segmenter arch must be one of {list(ARCHS)}, got {arch!r}")
-    return arch
 
 
 def scaled_channels(channels: int, width: float) -> int:
@@ -262,7 +250,7 @@ class SegmenterNet(nn.Module):
         padding: str = "published",
     ) -> None:
         super().__init__()
-        self.arch = _check_arch(arch)
+        self.arch = check_arch(arch)
         self.padding = _check_padding(padding)
         self.width = _check_real("segmenter width", width, 0.0, 1.0, open_lo=True)
         self.input_scale = _check_real("segmenter input_scale", input_scale, 0.0, 1.0, True)
@@ -335,7 +323,7 @@ def model_input(
 ) -> torch.Tensor:
     """The network input of ``arch`` from (B, 3, H, W) RGB/255 and HHA/255 tensors: ``rgb``,
     ``hha`` or both concatenated along channels (RGB first)."""
-    _check_arch(arch)
+    check_arch(arch)
     if arch in ("rgb", "fusion") and rgb is None:
         raise InputError(f"segmenter arch {arch!r} needs an RGB input")
     if arch in ("hha", "fusion") and hha is None:

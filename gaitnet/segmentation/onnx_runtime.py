@@ -14,7 +14,8 @@ input's channels and the normalisation applied inside the graph.
 :class:`OnnxSegmenter` runs such a file on explicit providers with a set thread count; a file
 that is missing, unreadable or not a gaitnet segmenter, and an input of the wrong rank, shape or
 dtype, an empty batch or NaN/inf, are one-line :class:`~gaitnet.io.onnx_session.OnnxInputError`
-s (an :class:`~gaitnet.errors.InputError`) naming the file.
+s (an :class:`~gaitnet.errors.InputError`) naming the file. Running a model does not import
+PyTorch (only the export does).
 """
 
 from __future__ import annotations
@@ -22,9 +23,9 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
 
 from gaitnet.io.onnx_export import ExportReport, OnnxParityError, export_onnx_checked
 from gaitnet.io.onnx_session import (
@@ -34,15 +35,19 @@ from gaitnet.io.onnx_session import (
     open_session,
     run_session,
 )
-from gaitnet.segmentation.fcn import (
+from gaitnet.segmentation.channels import (
     ARCHS,
     HHA_MEAN,
     HHA_STD,
     RGB_MEAN,
     RGB_STD,
-    SegmenterNet,
     input_channels,
 )
+
+if TYPE_CHECKING:  # PyTorch is imported only to export (module docstring)
+    import torch
+
+    from gaitnet.segmentation.fcn import SegmenterNet
 
 __all__ = [
     "DEFAULT_CLASSES",
@@ -132,6 +137,8 @@ def export_segmenter_onnx(
         raise OnnxInputError(
             f"ONNX export {path}: {len(classes)} class names for {model.num_classes} classes"
         )
+    import torch
+
     channels = model.in_channels
 
     def make_input(batch: int, gen: torch.Generator) -> torch.Tensor:
