@@ -8,7 +8,11 @@ realistic depth: on the frames' background pixels that the floor fit calls floor
 2 cm), the median and 95th percentile of the angle channel [deg] and of |height| [mm], and how
 often the no-IMU fallback finds the same floor (height codes within 2).
 
+``--stride 2`` times the encoding at every second pixel (the committed segmenter's, whose
+streams see the frame at half size; :func:`gaitnet.segmentation.hha.hha_stride`).
+
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_hha.py [--frames 8] [--repeat 3]
+        [--stride 1]
 """
 
 from __future__ import annotations
@@ -36,18 +40,23 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=8)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--seed", type=int, default=11)
+    ap.add_argument("--stride", type=int, default=1, help="HHA stride (1: every pixel)")
     args = ap.parse_args()
     cv2.setNumThreads(1)
     cfg = load_config(SimConfig, ROOT / "configs" / "sim" / "default.yaml")
     frames = [simulate_frame(cfg, args.seed, i) for i in range(args.frames)]
     h, w = frames[0].depth_m.shape
-    print(f"{len(frames)} simulated frames {w}×{h} (configs/sim/default.yaml, seed {args.seed})")
+    print(
+        f"{len(frames)} simulated frames {w}×{h} (configs/sim/default.yaml, seed {args.seed}), "
+        f"HHA stride {args.stride}"
+    )
     for name, use_gravity in (("with gravity", True), ("gravity=None", False)):
         best_wall = best_cpu = np.inf
         for _ in range(args.repeat):
             t0, c0 = time.perf_counter(), time.process_time()
             for f in frames:
-                hha_encode(f.depth_m, f.K, f.gravity_C() if use_gravity else None)
+                gravity = f.gravity_C() if use_gravity else None
+                hha_encode(f.depth_m, f.K, gravity, stride=args.stride)
             best_wall = min(best_wall, time.perf_counter() - t0)
             best_cpu = min(best_cpu, time.process_time() - c0)
         n = len(frames)
@@ -57,12 +66,12 @@ def main() -> None:
         )
     angles, heights, same = [], [], 0
     for f in frames:
-        hha = hha_encode(f.depth_m, f.K, f.gravity_C())
+        hha = hha_encode(f.depth_m, f.K, f.gravity_C(), stride=args.stride)
         _, height, angle = hha_decode(hha)
         floor = (f.render.label == 0) & (np.abs(height) < 0.02) & np.isfinite(angle)
         angles.append(angle[floor])
         heights.append(np.abs(height[floor]) * 1e3)
-        no_imu = hha_encode(f.depth_m, f.K, None)
+        no_imu = hha_encode(f.depth_m, f.K, None, stride=args.stride)
         valid = f.depth_m > 0
         diff = np.abs(no_imu[..., 1].astype(int) - hha[..., 1].astype(int))[valid]
         same += int(np.percentile(diff, 99) <= 2)

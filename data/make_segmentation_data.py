@@ -4,7 +4,8 @@ Renders four folders with ``gaitnet simulate-dataset`` (camera pitch drawn per f
 ``configs/sim/frames-pitch55-75.yaml``), each from its own seed so that no frame of the
 validation, test or held-out sets shares a seed with a training frame::
 
-    OUT/train/     --seed 101, random floor family; train.txt lists the frames not on HELD_OUT
+    OUT/train/     --seed 101, 1000 frames, random floor family; train_large.txt lists the frames
+                   not on HELD_OUT, train.txt those among the first 300 (the earlier models' set)
     OUT/val/       --seed 202, random floor family; val.txt   lists the frames not on HELD_OUT
     OUT/test/      --seed 303, random floor family; test.txt  lists the frames not on HELD_OUT
     OUT/heldout/   --seed 404, every frame on the held-out family; heldout.txt lists them all
@@ -15,8 +16,9 @@ per line (the format of :func:`gaitnet.segmentation.folder_files.read_split`).
 
     python data/make_segmentation_data.py --out data/cache/seg
 
-reproduces the data of the committed model (540 frames, about 1 s each on an idle CPU core;
-``--sets`` splits the work between processes).
+reproduces the data of the committed model (1240 frames, about 1 s each on an idle CPU core;
+``--sets`` splits the work between processes). Every frame has its own seed from the set's seed
+and its index, so the first 300 frames of ``train/`` are those of a 300-frame render.
 """
 
 from __future__ import annotations
@@ -29,10 +31,11 @@ from pathlib import Path
 
 CONFIG = "configs/sim/frames-pitch55-75.yaml"
 HELD_OUT = "wood"
+SMALL_TRAIN = 300  # train.txt: the first 300 frames (the earlier, 12- and 40-epoch models)
 
 #: name, seed, frames to render, floor family (None: random), split file name.
 SETS: tuple[tuple[str, int, int, str | None], ...] = (
-    ("train", 101, 300, None),
+    ("train", 101, 1000, None),
     ("val", 202, 80, None),
     ("test", 303, 100, None),
     ("heldout", 404, 60, HELD_OUT),
@@ -70,9 +73,10 @@ def render(out: Path, name: str, seed: int, n: int, family: str | None, scale: f
     return folder
 
 
-def write_split(folder: Path, name: str, keep_held_out: bool) -> int:
+def write_split(folder: Path, name: str, keep_held_out: bool, first: int | None = None) -> int:
+    """``name.txt``: the ids of ``frames.csv`` (its first ``first`` rows) on or off HELD_OUT."""
     with (folder / "frames.csv").open(newline="") as f:
-        rows = list(csv.DictReader(f))
+        rows = list(csv.DictReader(f))[:first]
     ids = [r["id"] for r in rows if (r["floor_family"] == HELD_OUT) == keep_held_out]
     (folder / f"{name}.txt").write_text("".join(f"{i}\n" for i in ids))
     return len(ids)
@@ -97,7 +101,13 @@ def main(argv: list[str] | None = None) -> int:
         if name not in args.sets:
             continue
         folder = render(args.out, name, seed, n, family, args.scale)
-        kept = write_split(folder, name, keep_held_out=family == HELD_OUT)
+        if name == "train":
+            kept = write_split(folder, "train_large", keep_held_out=False)
+            print(f"{folder / 'train_large.txt'}: {kept} frames")
+            first = max(1, round(SMALL_TRAIN * args.scale))
+            kept = write_split(folder, name, keep_held_out=False, first=first)
+        else:
+            kept = write_split(folder, name, keep_held_out=family == HELD_OUT)
         print(f"{folder / (name + '.txt')}: {kept} frames")
     return 0
 

@@ -254,3 +254,24 @@ def test_argmax_classes_is_numpys_argmax_ties_included(classes: int) -> None:
     labels = argmax_classes(logits)
     assert labels.dtype == np.uint8 and labels.shape == (2, 7, 9)
     np.testing.assert_array_equal(labels, np.argmax(logits, axis=1))
+
+
+def test_committed_model_is_what_its_sidecar_says() -> None:
+    """The default segmenter of gaitnet segment / infer: loads, has the documented contract,
+    and its sidecar (provenance, scores) describes these very bytes."""
+    import hashlib
+
+    from gaitnet.segmentation.segment_session import default_segmenter_path
+
+    path = default_segmenter_path()
+    seg = OnnxSegmenter(path)
+    side = json.loads(path.with_suffix(".json").read_text())
+    assert side["sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
+    assert (seg.arch, seg.channels, seg.height, seg.width) == ("fusion", 6, 480, 640)
+    assert (
+        seg.input_scale == side["input_scale"]
+        and seg.metadata["gaitnet.padding"] == side["padding"]
+    )
+    assert seg.classes == tuple(side["classes"]) == ("background", "foot", "leg")
+    labels = seg.predict(np.zeros((1, 6, 480, 640), np.float32))
+    assert labels.shape == (1, 480, 640)
