@@ -19,7 +19,10 @@ ROOT = Path(__file__).parents[1]
 W, H, F = 160, 120, 100.0
 CX, CY = 79.5, 59.5
 K = np.array([[F, 0.0, CX], [0.0, F, CY], [0.0, 0.0, 1.0]])
-NO_FLOOR = FootKeypointParams(use_floor=False)
+NO_FLOOR = FootKeypointParams(use_floor=False, split_width_m=0.0)
+# The synthetic boxes below are 15-20 cm wide at F = 100 px, wider than a shoe: the tests of
+# other settings switch the merged-feet split off; it is tested on realistic feet on its own.
+NO_SPLIT = FootKeypointParams(split_width_m=0.0)
 
 
 def rect(labels: np.ndarray, u0: int, u1: int, v0: int, v1: int, value: int = 1) -> np.ndarray:
@@ -114,11 +117,11 @@ def test_floor_pixels_labelled_foot_are_removed_by_height() -> None:
     box = np.zeros_like(ring)
     box[60:90, 40:56] = True  # ... around a box 5 cm high on the floor
     raise_to(depth, box, g, 0.05)
-    (foot,) = foot_keypoints(labels, depth, K, FootKeypointParams(), gravity_C=g)
+    (foot,) = foot_keypoints(labels, depth, K, NO_SPLIT, gravity_C=g)
     assert np.array_equal(foot.mask, box)
     (foot,) = foot_keypoints(labels, depth, K, NO_FLOOR, gravity_C=g)
     assert (foot.mask & ring & ~box).sum() > 100  # without the floor, the ring stays
-    (foot,) = foot_keypoints(labels, depth, K)  # no gravity: the no-IMU floor fit
+    (foot,) = foot_keypoints(labels, depth, K, NO_SPLIT)  # no gravity: the no-IMU floor fit
     assert np.array_equal(foot.mask, box)
     # a blob high above the floor is no foot
     high = floor_depth()[0]
@@ -145,7 +148,7 @@ def test_two_feet_are_ordered_and_offset_and_leg_rule_act() -> None:
     labels = np.zeros((H, W), np.uint8)
     foot_box(labels, depth, g, 84, 96, 60, 85)  # both right of the optical axis, 15+ cm apart
     foot_box(labels, depth, g, 120, 134, 62, 88)
-    feet = foot_keypoints(labels, depth, K, gravity_C=g)
+    feet = foot_keypoints(labels, depth, K, NO_SPLIT, gravity_C=g)
     assert sorted(f.side for f in feet) == ["left", "right"]
     by_u = sorted(feet, key=lambda f: f.keypoints_px["mid"][0])
     assert [f.side for f in by_u] == ["left", "right"]
@@ -154,15 +157,15 @@ def test_two_feet_are_ordered_and_offset_and_leg_rule_act() -> None:
     labels = np.zeros((H, W), np.uint8)
     depth, g = floor_depth()
     foot_box(labels, depth, g, 80, 90, 60, 85)
-    (foot,) = foot_keypoints(labels, depth, K, gravity_C=g)
+    (foot,) = foot_keypoints(labels, depth, K, NO_SPLIT, gravity_C=g)
     assert foot.side == "right" and -0.1 < foot.lateral_m < 0
-    offset = FootKeypointParams(lateral_offset_m=-0.1)
+    offset = FootKeypointParams(split_width_m=0.0, lateral_offset_m=-0.1)
     (foot,) = foot_keypoints(labels, depth, K, offset, gravity_C=g)
     assert foot.side == "left"
     # the leg rule (min_lateral_m beyond the foot's offset): a leg reaching to the left edge
     rect(labels, 20, 90, 86, 119, value=2)
     rect(labels, 80, 90, 60, 85)
-    leg_rule = FootKeypointParams(min_lateral_m=0.5)
+    leg_rule = FootKeypointParams(split_width_m=0.0, min_lateral_m=0.5)
     (foot,) = foot_keypoints(labels, depth, K, leg_rule, gravity_C=g)
     assert foot.side == "left"
     labels[labels == 2] = 0
@@ -206,7 +209,7 @@ def test_every_setting_acts() -> None:
     foot = rect(labels, 40, 55, 60, 89)  # 480 px
     depth = np.full((H, W), 0.8, np.float32)
     depth[60:63, 40:56] = 1.0  # 48 px 0.2 m behind
-    base = dict(use_floor=False, depth_radius_px=3)
+    base = dict(use_floor=False, depth_radius_px=3, split_width_m=0.0)
 
     def run(**kw):
         return foot_keypoints(labels, depth, K, FootKeypointParams(**{**base, **kw}))
@@ -226,13 +229,25 @@ def test_every_setting_acts() -> None:
     fdepth, g = floor_depth()
     flab = np.zeros((H, W), np.uint8)
     foot_box(flab, fdepth, g, 40, 55, 60, 89)
-    assert len(foot_keypoints(flab, fdepth, K, gravity_C=g)) == 1
+    assert len(foot_keypoints(flab, fdepth, K, NO_SPLIT, gravity_C=g)) == 1
     assert (
-        foot_keypoints(flab, fdepth, K, FootKeypointParams(min_foot_height_m=0.06), gravity_C=g)
+        foot_keypoints(
+            flab,
+            fdepth,
+            K,
+            FootKeypointParams(split_width_m=0.0, min_foot_height_m=0.06),
+            gravity_C=g,
+        )
         == []
     )
     assert (
-        foot_keypoints(flab, fdepth, K, FootKeypointParams(max_foot_height_m=0.04), gravity_C=g)
+        foot_keypoints(
+            flab,
+            fdepth,
+            K,
+            FootKeypointParams(split_width_m=0.0, max_foot_height_m=0.04),
+            gravity_C=g,
+        )
         == []
     )
     # the floor fit's settings reach the fit: no floor → no height filter on a floor ring
@@ -243,25 +258,51 @@ def test_every_setting_acts() -> None:
     from gaitnet.geometry.floor_plane import FloorParams
     from gaitnet.segmentation.hha import HhaParams
 
-    no_fit = FootKeypointParams(floor=HhaParams(floor=FloorParams(min_inliers=10**6)))
-    area = foot_keypoints(ring, ring_depth, K, gravity_C=g)[0].area_px
+    no_fit = FootKeypointParams(
+        split_width_m=0.0, floor=HhaParams(floor=FloorParams(min_inliers=10**6))
+    )
+    area = foot_keypoints(ring, ring_depth, K, NO_SPLIT, gravity_C=g)[0].area_px
     assert foot_keypoints(ring, ring_depth, K, no_fit, gravity_C=g)[0].area_px > area
     # two feet 4 cm apart laterally: ordered by default, one by one with min_separation_m
     two = np.zeros((H, W), np.uint8)
     tdepth, g = floor_depth()
     foot_box(two, tdepth, g, 60, 70, 60, 85)
     foot_box(two, tdepth, g, 74, 84, 60, 85)
-    assert sorted(f.side for f in foot_keypoints(two, tdepth, K, gravity_C=g)) == ["left", "right"]
-    apart = FootKeypointParams(min_separation_m=1.0)
+    assert sorted(f.side for f in foot_keypoints(two, tdepth, K, NO_SPLIT, gravity_C=g)) == [
+        "left",
+        "right",
+    ]
+    apart = FootKeypointParams(split_width_m=0.0, min_separation_m=1.0)
     assert [f.side for f in foot_keypoints(two, tdepth, K, apart, gravity_C=g)] == ["left"] * 2
     # the leg rule: a leg 2 px from the foot is attached only with attach_px ≥ 2, and small
     # legs do not count
-    leg_rule = FootKeypointParams(min_lateral_m=0.5)
+    leg_rule = FootKeypointParams(split_width_m=0.0, min_lateral_m=0.5)
     one = np.zeros((H, W), np.uint8)
     rect(one, 20, 90, 88, 119, value=2)
     foot_box(one, tdepth, g, 80, 90, 60, 85)
     assert foot_keypoints(one, tdepth, K, leg_rule, gravity_C=g)[0].side == "left"
-    near = FootKeypointParams(min_lateral_m=0.5, attach_px=1)
+    near = FootKeypointParams(split_width_m=0.0, min_lateral_m=0.5, attach_px=1)
     assert foot_keypoints(one, tdepth, K, near, gravity_C=g)[0].side == "unknown"
-    small = FootKeypointParams(min_lateral_m=0.5, min_leg_area_fraction=0.2)
+    small = FootKeypointParams(split_width_m=0.0, min_lateral_m=0.5, min_leg_area_fraction=0.2)
     assert foot_keypoints(one, tdepth, K, small, gravity_C=g)[0].side == "unknown"
+
+
+def test_two_feet_merged_into_one_blob_are_split() -> None:
+    """Two 10 cm shoes side by side, touching (one blob ~20 cm wide at ~1 m), are two feet,
+    left and right; a single shoe with a segmentation rim (~12 cm) stays one."""
+    depth, g = floor_depth()
+    labels = np.zeros((H, W), np.uint8)
+    foot_box(labels, depth, g, 70, 89, 65, 85)  # 20 px ≈ 20 cm at ~1 m
+    feet = foot_keypoints(labels, depth, K, gravity_C=g)
+    assert len(feet) == 2
+    by_u = sorted(feet, key=lambda f: f.keypoints_px["mid"][0])
+    assert [f.side for f in by_u] == ["left", "right"]
+    assert by_u[0].keypoints_px["mid"][0] < 80 < by_u[1].keypoints_px["mid"][0]
+    assert not (by_u[0].mask & by_u[1].mask).any()
+    assert (by_u[0].mask | by_u[1].mask).sum() == (labels == 1).sum()
+    assert len(foot_keypoints(labels, depth, K, NO_SPLIT, gravity_C=g)) == 1
+    one, one_depth = np.zeros((H, W), np.uint8), floor_depth()[0]
+    foot_box(one, one_depth, g, 60, 71, 65, 85)  # 12 px ≈ 12 cm
+    assert len(foot_keypoints(one, one_depth, K, gravity_C=g)) == 1
+    with pytest.raises(ValueError, match="split_width_m"):
+        FootKeypointParams(split_width_m=-0.1)

@@ -39,13 +39,20 @@ treated as background) and the aligned depth image into one :class:`FootDetectio
    blob attached to the foot (the leg blob with most pixels within ``attach_px`` of the foot)
    says it, by the lateral direction of the leg's pixel farthest from the foot (its hip end);
    with no attached leg the side is ``"unknown"``. Feet beyond the two largest are
-   ``"unknown"``.
+   ``"unknown"``. A blob that spreads wider along ``left`` than one shoe can
+   (``split_width_m``) is two feet merged by the segmenter's rim (feet side by side are a few
+   centimetres apart): it is split in two at Otsu's threshold of its pixels' lateral positions
+   before the keypoints are found. On the default simulated session the true label maps show
+   two separate feet in 211 frames, the committed segmenter's in only 43 (a merged blob is
+   sided as one foot by its lateral position: 79 of 265 such feet got the wrong side); split,
+   402 of 408 paired feet and all 104 lone feet get their true side.
 
    The rule assumes a camera worn at the middle of the waist looking forward-down; it fails
    where a foot crosses the body's midline (cross-over steps, turning on the spot), where the
    camera is worn off-centre (set ``lateral_offset_m``) or yawed so far that the projected
    optical axis misses the walking direction by more than the feet's half-spacing over their
-   distance, and where two feet merge into one blob (it gets one side).
+   distance, and where a foot turned sideways spreads wider than ``split_width_m`` (it is
+   split in two).
 """
 
 from __future__ import annotations
@@ -112,6 +119,12 @@ class FootKeypointParams:
     feet wrong: the lone foot's own leg is often out of view and the other leg touches it."""
     lateral_offset_m: float = 0.0
     """The body's midline along the camera's left axis [m] (a camera worn off-centre)."""
+    split_width_m: float = 0.15
+    """A foot blob whose pixels spread wider than this along the left axis (5th to 95th
+    percentile of their lateral positions) is two feet merged, split at Otsu's threshold of
+    those positions [m]; 0: never split. A shoe is 9–11 cm wide and a segmenter's rim adds a
+    few centimetres (one foot spreads < 0.13 m), two feet side by side at a step width of 0.1 m
+    spread about 0.18 m."""
     floor: HhaParams = field(default_factory=HhaParams)
     """Floor fit settings when no plane is given (those of HHA)."""
 
@@ -130,6 +143,7 @@ class FootKeypointParams:
         check_range("min_separation_m", self.min_separation_m, 0.0, 10.0, " m")
         check_range("min_lateral_m", self.min_lateral_m, 0.0, 10.0, " m")
         check_range("lateral_offset_m", self.lateral_offset_m, -10.0, 10.0, " m")
+        check_range("split_width_m", self.split_width_m, 0.0, 10.0, " m")
 
 
 @dataclass
@@ -293,16 +307,48 @@ def foot_keypoints(
     left = left_axis(up)
     height = height_map(z, K, plane) if plane is not None else None
     feet: list[FootDetection] = []
+    min_area = max(p.min_area_fraction * H * W, 1)
     for blob in _blobs(foot_mask, p.min_area_fraction * H * W):
         mask = _filter_blob(blob, z, height, p)
-        if mask is None or mask.sum() < max(p.min_area_fraction * H * W, 1):
+        if mask is None or mask.sum() < min_area:
             continue
-        px = _keypoint_pixels(mask, p)
-        pts = {name: _point(z, mask, K, px[name], p) for name in KEYPOINT_NAMES}
-        lateral = _lateral(K, px["mid"], pts["mid"], plane, left) - p.lateral_offset_m
-        feet.append(FootDetection("unknown", px, pts, int(mask.sum()), lateral, mask))
+        for part in _split_merged(mask, z, K, left, p.split_width_m, min_area):
+            px = _keypoint_pixels(part, p)
+            pts = {name: _point(z, part, K, px[name], p) for name in KEYPOINT_NAMES}
+            lateral = _lateral(K, px["mid"], pts["mid"], plane, left) - p.lateral_offset_m
+            feet.append(FootDetection("unknown", px, pts, int(part.sum()), lateral, part))
+    feet.sort(key=lambda f: -f.area_px)
     _assign_sides(feet, labels, K, left, p)
     return feet
+
+
+def _split_merged(
+    mask: np.ndarray, z: np.ndarray, K: np.ndarray, left: np.ndarray, width: float, min_area: float
+) -> list[np.ndarray]:
+    """``mask`` as it is, or its two halves when it spreads wider than ``width`` along
+    ``left`` (two feet merged into one blob; :attr:`FootKeypointParams.split_width_m`)."""
+    if width <= 0:
+        return [mask]
+    v, u = np.nonzero(mask)
+    d = z[v, u]
+    valid = d > 0
+    if valid.sum() < 2:
+        return [mask]
+    d = np.where(valid, d, np.median(d[valid]))  # a hole lies at the blob's typical depth
+    lateral = ((u - K[0, 2]) / K[0, 0] * left[0] + (v - K[1, 2]) / K[1, 1] * left[1] + left[2]) * d
+    lo, hi = np.percentile(lateral, [5, 95])
+    if hi - lo <= width:
+        return [mask]
+    codes = np.round(255 * (np.clip(lateral, lo, hi) - lo) / (hi - lo)).astype(np.uint8)
+    threshold, _ = cv2.threshold(codes[None], 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    parts = []
+    for side in (codes > threshold, codes <= threshold):
+        part = np.zeros_like(mask)
+        part[v[side], u[side]] = True
+        parts.append(part)
+    if min(int(part.sum()) for part in parts) < min_area:
+        return [mask]
+    return parts
 
 
 def _leg_side(
