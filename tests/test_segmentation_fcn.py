@@ -94,17 +94,23 @@ def test_published_layer_shapes() -> None:
             assert layer.bias is None
 
 
+def pool_sizes_at_640x480(stream: FCN8s) -> list[tuple[int, ...]]:
+    """The (H, W) after each pooling layer for a 640×480 input (on the meta device); checks
+    the stream's output is the input's size."""
+    h = torch.empty(1, 3, 480, 640)
+    sizes = []
+    for layer in stream.features:
+        h = layer(h)
+        if isinstance(layer, nn.MaxPool2d):
+            sizes.append(tuple(h.shape[2:]))
+    assert stream(torch.empty(1, 3, 480, 640)).shape == (1, 3, 480, 640)
+    return sizes
+
+
 def test_feature_map_sizes_at_640x480() -> None:
     """Pool sizes by hand: conv1_1 pad 100 → 678 × 838, then ceil(x / 2) five times."""
     with torch.device("meta"):
-        stream = FCN8s(3)
-        h = torch.empty(1, 3, 480, 640)
-        sizes = []
-        for layer in stream.features:
-            h = layer(h)
-            if isinstance(layer, nn.MaxPool2d):
-                sizes.append(tuple(h.shape[2:]))
-        assert stream(torch.empty(1, 3, 480, 640)).shape == (1, 3, 480, 640)
+        sizes = pool_sizes_at_640x480(FCN8s(3))
     expected, hw = [], (480 + 198, 640 + 198)
     for _ in range(5):
         hw = (math.ceil(hw[0] / 2), math.ceil(hw[1] / 2))
@@ -116,13 +122,7 @@ def test_same_padding_feature_map_sizes_at_640x480() -> None:
     """conv1_1 padded by 1 keeps 480 × 640; then ceil(x / 2) five times."""
     with torch.device("meta"):
         stream = FCN8s(3, padding="same")
-        h = torch.empty(1, 3, 480, 640)
-        sizes = []
-        for layer in stream.features:
-            h = layer(h)
-            if isinstance(layer, nn.MaxPool2d):
-                sizes.append(tuple(h.shape[2:]))
-        assert stream(torch.empty(1, 3, 480, 640)).shape == (1, 3, 480, 640)
+        sizes = pool_sizes_at_640x480(stream)
         assert stream.fc6(torch.empty(1, 512, 15, 20)).shape == (1, 4096, 15, 20)
     assert sizes == [(240, 320), (120, 160), (60, 80), (30, 40), (15, 20)]
     assert n_params(FCN8s(3, padding="same")) == published_count(3)
