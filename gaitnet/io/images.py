@@ -14,6 +14,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from zlib_ng import zlib_ng
 
 from gaitnet.errors import SessionError
 
@@ -103,32 +104,75 @@ def read_depth(path: Path, width: int, height: int, depth_scale_m: float) -> np.
     return image.astype(np.float32) * np.float32(depth_scale_m)
 
 
-def encode_png(image: np.ndarray) -> bytes:
-    """Lossless, deterministic PNG bytes of a uint8/uint16 image (colour given as RGB)."""
-    if image.ndim == 3:
-        image = image[:, :, ::-1]
-    # One fixed PNG row filter instead of libpng's per-row choice (AVG for colour, UP for
-    # 16-bit depth, none for label maps), then zlib's Huffman-only strategy for colour and
-    # depth (camera noise leaves few repeats for LZ77 to find: files within 0.2 % of the RLE
-    # strategy's, ~20 % faster) and RLE for label maps (long runs of one value); measured in
-    # docs/benchmarks.md.
-    if image.ndim == 3:
-        row_filter, strategy = cv2.IMWRITE_PNG_FILTER_AVG, cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY
-    elif image.dtype == np.uint16:
-        row_filter, strategy = cv2.IMWRITE_PNG_FILTER_UP, cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY
+# PNG filter types (PNG spec sec. 9.2) and the colour type per channel count.
+_FILTER_NONE, _FILTER_UP, _FILTER_AVERAGE = 0, 2, 3
+_COLOUR_TYPE = {1: 0, 2: 4, 3: 2, 4: 6}
+
+
+def _png_chunk(kind: bytes, data: bytes) -> bytes:
+    return (
+        struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib_ng.crc32(kind + data))
+    )
+
+
+def _filtered_rows(image: np.ndarray) -> tuple[np.ndarray, int, int]:
+    """The PNG scanlines of ``image`` (H, W[, C]) with one fixed filter, a filter-type byte in
+    front of each row; also the filter type and the deflate strategy that suits it.
+
+    8-bit colour: Average (each byte minus the floor-mean of the byte one pixel left and the
+    byte above, both unfiltered) with Huffman-only coding (camera noise leaves few repeats for
+    LZ77 to find); 16-bit: Up (big-endian bytes minus those above), Huffman-only; 8-bit
+    single-channel (label maps): no filter, run-length coding (long runs of one value)."""
+    height = image.shape[0]
+    channels = 1 if image.ndim == 2 else image.shape[2]
+    if image.dtype == np.uint16:
+        raw = image.astype(">u2").view(np.uint8).reshape(height, -1)
+        kind, strategy = _FILTER_UP, zlib_ng.Z_HUFFMAN_ONLY
+        body = raw.copy()
+        body[1:] -= raw[:-1]
+    elif channels > 1:
+        raw = image.reshape(height, -1)
+        kind, strategy = _FILTER_AVERAGE, zlib_ng.Z_HUFFMAN_ONLY
+        pair = np.zeros(raw.shape, np.uint16)
+        pair[:, channels:] = raw[:, :-channels]
+        pair[1:] += raw[:-1]
+        pair >>= 1
+        body = raw - pair.astype(np.uint8)
     else:
-        row_filter, strategy = cv2.IMWRITE_PNG_FILTER_NONE, cv2.IMWRITE_PNG_STRATEGY_RLE
-    params = [cv2.IMWRITE_PNG_COMPRESSION, 3, cv2.IMWRITE_PNG_STRATEGY, strategy]
-    params += [cv2.IMWRITE_PNG_FILTER, row_filter]
-    ok, buf = cv2.imencode(".png", np.ascontiguousarray(image), params)
-    if not ok:
-        raise ValueError("PNG encoding failed")
-    return buf.tobytes()
+        body, kind, strategy = image.reshape(height, -1), _FILTER_NONE, zlib_ng.Z_RLE
+    rows = np.empty((height, body.shape[1] + 1), np.uint8)
+    rows[:, 0] = kind
+    rows[:, 1:] = body
+    return rows, kind, strategy
+
+
+def encode_png(image: np.ndarray) -> bytes:
+    """Lossless, deterministic PNG bytes of a uint8/uint16 image of 1–4 channels (colour given
+    as RGB[A]).
+
+    One fixed row filter per image kind (:func:`_filtered_rows`) and zlib-ng's deflate at
+    level 3, about twice as fast as libpng with zlib for the same files (docs/benchmarks.md);
+    every PNG reader decodes them. Compression releases the GIL, so encoding on a thread
+    overlaps with other work."""
+    image = np.asarray(image)
+    channels = 1 if image.ndim == 2 else (image.shape[2] if image.ndim == 3 else 0)
+    if image.dtype not in (np.uint8, np.uint16) or channels not in _COLOUR_TYPE or 0 in image.shape:
+        raise ValueError(f"cannot encode a {image.dtype} {image.shape} image as PNG")
+    rows, _, strategy = _filtered_rows(image)
+    deflate = zlib_ng.compressobj(3, zlib_ng.DEFLATED, 15, 8, strategy)
+    data = deflate.compress(rows) + deflate.flush()
+    height, width = image.shape[:2]
+    bit_depth = 16 if image.dtype == np.uint16 else 8
+    header = struct.pack(">IIBBBBB", width, height, bit_depth, _COLOUR_TYPE[channels], 0, 0, 0)
+    return PNG_SIGNATURE + _png_chunk(b"IHDR", header) + _png_chunk(b"IDAT", data) + PNG_IEND
 
 
 def depth_to_units(depth_m: np.ndarray, depth_scale_m: float) -> np.ndarray:
     """Metres → uint16 depth units; non-finite, non-positive or out-of-range depths become 0."""
-    depth = np.asarray(depth_m, dtype=np.float64)
-    units = np.round(np.where(np.isfinite(depth), depth, 0.0) / depth_scale_m)
-    units[(units <= 0) | (units > 65535)] = 0
-    return units.astype(np.uint16)
+    scaled = np.divide(depth_m, depth_scale_m, dtype=np.float64)
+    np.rint(scaled, out=scaled)  # half to even, as np.round
+    valid = (scaled > 0) & (scaled <= 65535)  # NaN compares false
+    with np.errstate(invalid="ignore"):  # the invalid ones cast to garbage, then to 0
+        units = scaled.astype(np.uint16)
+    units[~valid] = 0
+    return units

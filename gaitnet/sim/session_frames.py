@@ -139,13 +139,13 @@ def _slot_maps(buf, cam) -> dict[str, np.ndarray]:
     return maps
 
 
-def _init_worker(job: bytes, slots: list) -> None:
+def _init_worker(job, slots: list) -> None:
     global _JOB, _SLOTS
     # Ctrl-C reaches the whole process group: the main process stops the pool (its
     # ``terminate``), so a worker ignores SIGINT rather than print a traceback of its own
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     cv2.setNumThreads(1)
-    _JOB, _SLOTS = pickle.loads(job), slots
+    _JOB, _SLOTS = pickle.loads(memoryview(job).cast("B")), slots
 
 
 def _work(k: int, exposure: float) -> FrameOut:
@@ -260,11 +260,13 @@ def render_frames(job: FrameJob, workers: int | None = None) -> Iterator[FrameOu
     ctx = _context()
     _start_forkserver(ctx)
     slots = [ctx.RawArray("B", _slot_size(cam)) for _ in range(AE_LATENCY)]
-    blob = pickle.dumps(job, pickle.HIGHEST_PROTOCOL)  # once, not once per worker
+    blob = pickle.dumps(job, pickle.HIGHEST_PROTOCOL)  # once, not once per worker,
+    shared_job = ctx.RawArray("B", len(blob))  # and shared, not sent through each one's pipe
+    memoryview(shared_job).cast("B")[:] = blob
     with ExitStack() as stack:
         with _interrupts_deferred():
             pool = stack.enter_context(
-                ctx.Pool(min(workers, AE_LATENCY), _init_worker, (blob, slots))
+                ctx.Pool(min(workers, AE_LATENCY), _init_worker, (shared_job, slots))
             )
         pending: deque = deque(
             pool.apply_async(_work, (k, exposure_of(k))) for k in range(min(n, AE_LATENCY))

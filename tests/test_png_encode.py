@@ -1,0 +1,73 @@
+"""The PNG encoder: lossless for every image kind it accepts, by two independent decoders."""
+
+from __future__ import annotations
+
+import io
+
+import cv2
+import numpy as np
+import pytest
+from PIL import Image
+
+from gaitnet.io.images import encode_png, png_header
+
+KINDS = [
+    ((31, 17), np.uint8),  # label map: no filter, run-length coding
+    ((31, 17), np.uint16),  # depth: Up filter
+    ((31, 17, 3), np.uint8),  # colour: Average filter
+    ((31, 17, 4), np.uint8),
+    ((31, 17, 2), np.uint8),
+    ((31, 17, 3), np.uint16),
+    ((1, 1), np.uint8),
+    ((1, 9, 3), np.uint8),  # one row: nothing above
+    ((9, 1, 3), np.uint8),  # one column: nothing to the left
+]
+
+
+def _cv2_rgb(decoded: np.ndarray, channels: int) -> np.ndarray:
+    if channels in (3, 4):
+        order = [2, 1, 0, 3][:channels]
+        return decoded[..., order]
+    return decoded
+
+
+# OpenCV expands grey + alpha to BGRA; Pillow checks that kind
+@pytest.mark.parametrize(("shape", "dtype"), [k for k in KINDS if k[0][2:] != (2,)])
+def test_round_trip_through_opencv(shape, dtype) -> None:
+    rng = np.random.default_rng(7)
+    # noise, constant runs and the extremes, where the Average filter's sums overflow a byte
+    image = rng.integers(0, np.iinfo(dtype).max + 1, shape, dtype=dtype)
+    image[: shape[0] // 2, : max(1, shape[1] // 3)] = np.iinfo(dtype).max
+    image[-1, -1] = 0
+    decoded = cv2.imdecode(np.frombuffer(encode_png(image), np.uint8), cv2.IMREAD_UNCHANGED)
+    channels = 1 if image.ndim == 2 else shape[2]
+    np.testing.assert_array_equal(_cv2_rgb(decoded, channels), image)
+
+
+@pytest.mark.parametrize(
+    ("shape", "dtype"), [k for k in KINDS if k[1] == np.uint8 or len(k[0]) == 2]
+)
+def test_round_trip_through_pillow(shape, dtype) -> None:
+    image = np.random.default_rng(8).integers(0, np.iinfo(dtype).max + 1, shape, dtype=dtype)
+    decoded = np.asarray(Image.open(io.BytesIO(encode_png(image))))
+    np.testing.assert_array_equal(decoded.astype(dtype), image)
+
+
+def test_header_and_determinism(tmp_path) -> None:
+    image = np.random.default_rng(9).integers(0, 65536, (12, 20), dtype=np.uint16)
+    data = encode_png(image)
+    assert data == encode_png(image.copy())
+    path = tmp_path / "d.png"
+    path.write_bytes(data)
+    header = png_header(path)
+    assert (header.width, header.height, header.bit_depth, header.channels) == (20, 12, 16, 1)
+    assert header.complete
+
+
+@pytest.mark.parametrize(
+    "image",
+    [np.zeros((4, 4), np.float32), np.zeros((4, 4, 5), np.uint8), np.zeros((0, 4), np.uint8)],
+)
+def test_refuses_what_png_cannot_hold(image) -> None:
+    with pytest.raises(ValueError, match="cannot encode"):
+        encode_png(image)
