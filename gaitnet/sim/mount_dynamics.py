@@ -37,7 +37,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.interpolate import CubicSpline
-from scipy.signal import bilinear, lfilter
 
 from gaitnet.geometry import make_T, so3_exp, so3_right_jacobian
 from gaitnet.sim.scene import SIDES
@@ -190,6 +189,10 @@ def build_mount_motion(
         u = np.einsum("nji,nj->ni", R_WP, a_P)
         if impacts_on:
             u = u + CubicSpline(t, d_imp)(t, 2)
+        # imported here: scipy.signal (and the scipy.stats it pulls in) is 0.3 s of start-up
+        # that the simulator's worker processes, which never get here, would pay
+        from scipy.signal import bilinear, lfilter
+
         w = 2 * np.pi * mount.wobble_freq_hz
         b, a = bilinear([-mount.wobble_gain], [1.0, 2 * mount.wobble_damping_ratio * w, w * w],
                         fs=GRID_HZ)  # fmt: skip
