@@ -79,3 +79,24 @@ def test_running_the_pipeline_does_not_import_pytorch() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+class FloorAsFootSegmenter(RecordingSegmenter):
+    """Labels a floor patch (what a segmenter's rim does) and a leg patch."""
+
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        labels = np.zeros((x.shape[0], x.shape[2], x.shape[3]), np.uint8)
+        labels[:, 40:70, 40:60] = 1
+        labels[:, 10:20, 90:110] = 2
+        return labels
+
+
+def test_kept_label_map_drops_floor_labelled_foot() -> None:
+    """The label map handed on (``gaitnet infer --save-labels``) is the post-processed one: a
+    foot label lying on the floor is no foot, the leg label stays."""
+    frame, T = floor_frame()
+    cfg = InferConfig()
+    feet = measure_feet(frame, K, T, FloorAsFootSegmenter(0.5), "mid", cfg.hha, cfg.feet)  # type: ignore[arg-type]
+    assert feet.n_blobs == 0 and np.isnan(feet.foot_W).all()
+    assert not (feet.labels == 1).any()
+    assert (feet.labels == 2).sum() == 10 * 20

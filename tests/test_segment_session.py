@@ -19,7 +19,7 @@ from gaitnet.io.trajectory import read_tum
 from gaitnet.segmentation.fcn import build_segmenter
 from gaitnet.segmentation.hha import HhaParams, find_floor, hha_encode
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter, export_segmenter_onnx
-from gaitnet.segmentation.postprocess import foot_keypoints
+from gaitnet.segmentation.postprocess import foot_keypoints, kept_feet_labels
 from gaitnet.segmentation.segment_session import (
     KEYPOINT_COLUMNS,
     accelerometer_gravity_C,
@@ -58,13 +58,14 @@ def test_segment_matches_a_per_frame_computation(
     gravity = accelerometer_gravity_C(session.imu, session.calibration.T_CfromI, frame.t_ns, 1.0)
     plane = find_floor(frame.depth_m, K, -gravity, HhaParams())
     hha = hha_encode(frame.depth_m, K, gravity, HhaParams(), plane=plane)
-    expected = model.predict(network_input("fusion", frame.rgb, hha))[0]
+    raw = model.predict(network_input("fusion", frame.rgb, hha))[0]
+    feet = foot_keypoints(raw, frame.depth_m, K, gravity_C=gravity, plane=plane)
     written = cv2.imread(str(out / "labels" / f"{frame.t_ns}.png"), cv2.IMREAD_UNCHANGED)
-    np.testing.assert_array_equal(written, expected)
+    np.testing.assert_array_equal(written, kept_feet_labels(raw, feet))
+    assert (written != raw).any()  # the random model's foot labels on the floor are dropped
     with open(out / "keypoints.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     assert rows and tuple(rows[0]) == KEYPOINT_COLUMNS
-    feet = foot_keypoints(written, frame.depth_m, K, gravity_C=gravity, plane=plane)
     mine = [r for r in rows if int(r["t_ns"]) == frame.t_ns]
     assert len(mine) == 3 * len(feet)
     for foot in feet:
@@ -79,6 +80,23 @@ def test_segment_matches_a_per_frame_computation(
     assert (out / "contact_sheet.png").stat().st_size > 0
     # the evaluation reads these label maps against the session's ground truth
     assert main(["evaluate", str(out), "--session", str(tiny_sim_session)]) == 0
+
+
+def test_raw_labels_are_the_networks_own(
+    tmp_path: Path, tiny_sim_session: Path, tiny_model: Path
+) -> None:
+    out = tmp_path / "seg"
+    args = ["segment", str(tiny_sim_session), "--out", str(out), "--model", str(tiny_model)]
+    assert main([*args, "--raw-labels"]) == 0
+    session = open_session(tiny_sim_session)
+    K = session.calibration.color.K
+    frame = session.frame(len(session) // 2)
+    gravity = accelerometer_gravity_C(session.imu, session.calibration.T_CfromI, frame.t_ns, 1.0)
+    plane = find_floor(frame.depth_m, K, -gravity, HhaParams())
+    hha = hha_encode(frame.depth_m, K, gravity, HhaParams(), plane=plane)
+    raw = OnnxSegmenter(tiny_model).predict(network_input("fusion", frame.rgb, hha))[0]
+    written = cv2.imread(str(out / "labels" / f"{frame.t_ns}.png"), cv2.IMREAD_UNCHANGED)
+    np.testing.assert_array_equal(written, raw)
 
 
 def test_accelerometer_gravity_follows_the_true_attitude(tiny_sim_session: Path) -> None:

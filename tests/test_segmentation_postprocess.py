@@ -11,7 +11,12 @@ import pytest
 
 from gaitnet.config import load_config
 from gaitnet.errors import InputError
-from gaitnet.segmentation.postprocess import FootKeypointParams, foot_keypoints, left_axis
+from gaitnet.segmentation.postprocess import (
+    FootKeypointParams,
+    foot_keypoints,
+    kept_feet_labels,
+    left_axis,
+)
 from gaitnet.sim.config import SimConfig
 from gaitnet.sim.dataset import simulate_frame
 
@@ -127,6 +132,29 @@ def test_floor_pixels_labelled_foot_are_removed_by_height() -> None:
     high = floor_depth()[0]
     raise_to(high, box, g, 0.7)
     assert foot_keypoints(np.where(box, 1, 0).astype(np.uint8), high, K, gravity_C=g) == []
+
+
+def test_label_map_keeps_only_the_kept_feet() -> None:
+    """The rim of floor pixels and a blob too high to be a foot become background; leg and
+    background pixels are untouched, and the input map is not modified."""
+    depth, g = floor_depth()
+    labels = np.zeros((H, W), np.uint8)
+    rect(labels, 36, 59, 56, 93)  # a foot label with a ring of floor around the raised box
+    box = np.zeros((H, W), bool)
+    box[60:90, 40:56] = True
+    raise_to(depth, box, g, 0.05)
+    high = rect(labels, 100, 110, 70, 80)  # a "foot" 0.7 m above the floor
+    raise_to(depth, high, g, 0.7)
+    leg = rect(labels, 120, 140, 20, 50, value=2)
+    before = labels.copy()
+    feet = foot_keypoints(labels, depth, K, NO_SPLIT, gravity_C=g)
+    kept = kept_feet_labels(labels, feet)
+    np.testing.assert_array_equal(labels, before)
+    expected = np.zeros((H, W), np.uint8)
+    expected[box] = 1
+    expected[leg] = 2
+    np.testing.assert_array_equal(kept, expected)
+    assert kept_feet_labels(labels, []).max() == 2  # no foot kept: legs stay
 
 
 @pytest.mark.parametrize("with_floor", [False, True])

@@ -218,6 +218,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=2,
         help="onnxruntime threads (0: its default; default 2)",
     )
+    p.add_argument(
+        "--raw-labels",
+        action="store_true",
+        help="write the network's own label maps, not the post-processed ones (feet kept by "
+        "the depth checks)",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.set_defaults(func=_cmd_segment)
 

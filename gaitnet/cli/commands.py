@@ -180,7 +180,11 @@ def _cmd_segment(args: argparse.Namespace) -> int:
     from gaitnet.io import open_session
     from gaitnet.io.atomic import check_output_folder
     from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
-    from gaitnet.segmentation.segment_session import default_segmenter_path, segment_session
+    from gaitnet.segmentation.segment_session import (
+        SegmentOptions,
+        default_segmenter_path,
+        segment_session,
+    )
 
     check_output_folder(args.out, args.overwrite)
     session = open_session(args.session)
@@ -190,6 +194,7 @@ def _cmd_segment(args: argparse.Namespace) -> int:
         model,
         args.out,
         overwrite=args.overwrite,
+        options=SegmentOptions(raw_labels=args.raw_labels),
         progress=lambda it, total: tqdm(it, total=total, desc="segmenting", unit="frame"),
     )
     shares = ", ".join(f"{k} {100 * v:.1f} %" for k, v in result.label_fractions.items())

@@ -20,7 +20,11 @@ from gaitnet.geometry.floor_plane import FloorPlane
 from gaitnet.io.types import Frame
 from gaitnet.segmentation.hha import HhaParams, hha_encode, hha_stride
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
-from gaitnet.segmentation.postprocess import FootKeypointParams, foot_keypoints
+from gaitnet.segmentation.postprocess import (
+    FootKeypointParams,
+    foot_keypoints,
+    kept_feet_labels,
+)
 from gaitnet.segmentation.segment_session import network_input
 
 __all__ = ["FrameFeet", "floor_in_camera", "measure_feet"]
@@ -31,7 +35,9 @@ SIDES = ("left", "right")
 @dataclass
 class FrameFeet:
     """One frame's measured feet: ``foot_W`` (2, 3) world points of the left and right foot
-    (a row of NaN where not seen), the label map and the number of foot blobs."""
+    (a row of NaN where not seen), the label map after the post-processing (foot pixels only
+    where a foot was kept: :func:`~gaitnet.segmentation.postprocess.kept_feet_labels`) and the
+    number of foot blobs."""
 
     foot_W: np.ndarray
     labels: np.ndarray
@@ -77,4 +83,4 @@ def measure_feet(
             side = SIDES[int(np.argmin(np.linalg.norm(predicted_W - p_W, axis=1)))]
         if side in SIDES and np.isnan(foot_W[SIDES.index(side), 0]):
             foot_W[SIDES.index(side)] = p_W
-    return FrameFeet(foot_W=foot_W, labels=labels, n_blobs=len(feet))
+    return FrameFeet(foot_W=foot_W, labels=kept_feet_labels(labels, feet), n_blobs=len(feet))

@@ -71,7 +71,13 @@ from gaitnet.segmentation.hha import HhaParams, find_floor
 
 log = logging.getLogger(__name__)
 
-__all__ = ["KEYPOINT_NAMES", "FootDetection", "FootKeypointParams", "foot_keypoints"]
+__all__ = [
+    "KEYPOINT_NAMES",
+    "FootDetection",
+    "FootKeypointParams",
+    "foot_keypoints",
+    "kept_feet_labels",
+]
 
 KEYPOINT_NAMES = ("top", "mid", "bottom")
 FOOT, LEG = 1, 2
@@ -320,6 +326,17 @@ def foot_keypoints(
     feet.sort(key=lambda f: -f.area_px)
     _assign_sides(feet, labels, K, left, p)
     return feet
+
+
+def kept_feet_labels(labels: np.ndarray, feet: list[FootDetection]) -> np.ndarray:
+    """``labels`` with foot pixels only where the post-processing kept a foot: foot pixels
+    outside every detection's mask (floor seen as foot at a blob's rim, blobs dropped by the
+    depth checks) become background; leg and background pixels are unchanged."""
+    out = np.array(labels, copy=True)
+    out[out == FOOT] = 0
+    for foot in feet:
+        out[foot.mask] = FOOT
+    return out
 
 
 def _split_merged(

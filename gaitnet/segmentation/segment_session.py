@@ -9,7 +9,10 @@ postprocess.foot_keypoints`). Written into a staging folder that appears at the 
 when complete (:func:`gaitnet.io.atomic.staged_folder`):
 
 - ``labels/<t_ns>.png``: 8-bit label map per frame (0 background, 1 foot, 2 leg), the layout of a
-  simulated session's ``groundtruth/labels/`` so ``gaitnet evaluate`` compares them;
+  simulated session's ``groundtruth/labels/`` so ``gaitnet evaluate`` compares them: after the
+  post-processing (foot pixels only where it kept a foot: the floor seen as foot at a foot's rim
+  and blobs that fail the depth checks become background), or the network's own arg-max with
+  :attr:`SegmentOptions.raw_labels`;
 - ``keypoints.csv``: one row per frame, foot and keypoint (:data:`KEYPOINT_COLUMNS`);
 - ``contact_sheet.png``: evenly spaced frames, RGB with the labels laid over it | label map;
 - ``summary.json``: model, frames, feet seen, where the time went.
@@ -41,7 +44,11 @@ from gaitnet.io.images import encode_png
 from gaitnet.io.types import ImuSamples, SessionSource
 from gaitnet.segmentation.hha import HhaParams, find_floor, hha_encode, hha_stride
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
-from gaitnet.segmentation.postprocess import FootKeypointParams, foot_keypoints
+from gaitnet.segmentation.postprocess import (
+    FootKeypointParams,
+    foot_keypoints,
+    kept_feet_labels,
+)
 
 log = logging.getLogger(__name__)
 
@@ -73,6 +80,10 @@ class SegmentOptions:
     about one stride, so the walking accelerations mostly cancel."""
     sheet_frames: int = 12
     """Frames on the contact sheet, evenly spaced over the session."""
+    raw_labels: bool = False
+    """Write the network's arg-max label maps instead of the post-processed ones (foot pixels
+    only where the post-processing kept a foot, :func:`~gaitnet.segmentation.postprocess.
+    kept_feet_labels`)."""
 
     def __post_init__(self) -> None:
         check_positive("gravity_window_s", self.gravity_window_s)
@@ -182,6 +193,8 @@ def segment_session(
             feet = foot_keypoints(
                 labels, frame.depth_m, K, keypoint_params, gravity_C=gravity, plane=plane
             )
+            if not options.raw_labels:
+                labels = kept_feet_labels(labels, feet)
             t3 = time.perf_counter()
             (stage / "labels" / f"{frame.t_ns}.png").write_bytes(encode_png(labels))
             counts += np.bincount(labels.ravel(), minlength=3)[:3]
