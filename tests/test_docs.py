@@ -238,7 +238,12 @@ def test_ci_runs_readme_test_command_verbatim() -> None:
 
 
 #: distribution name → the module the project imports it as
-IMPORT_NAMES = {"opencv-python-headless": "cv2", "PyYAML": "yaml", "pillow": "PIL"}
+IMPORT_NAMES = {
+    "opencv-python-headless": "cv2",
+    "PyYAML": "yaml",
+    "pillow": "PIL",
+    "zlib-ng": "zlib_ng",
+}
 
 
 def test_core_dependencies_are_used_and_extras_documented() -> None:
