@@ -236,7 +236,8 @@ def render_frames(job: FrameJob, workers: int | None = None) -> Iterator[FrameOu
     """All frames of ``job`` in order (module docstring).
 
     ``workers`` > 1 renders up to :data:`AE_LATENCY` frames at once in worker processes
-    (:func:`_context`; the job is sent to each once), with the same bytes as 1; None:
+    (:func:`_context`; the job is pickled once into shared memory that every worker reads),
+    with the same bytes as 1; None:
     :func:`default_workers`.
     """
     n = len(job.times)
