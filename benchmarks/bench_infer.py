@@ -9,7 +9,9 @@ written result folder (``mpjpe_m``, ``foot_nmate_m``, ``foot_nmate_filled_m``,
 - ``thesis``: eq. 4.8 only (prior, root, feet, free bone lengths), no extension;
 - ``+constraints``: + knee hinge, range of motion, fixed thigh / shank lengths;
 - ``+robust/contact``: + Cauchy loss on the feet, flat stance feet, contact weighting;
-- ``+offset`` (the default config): + the ankle-to-keypoint offset.
+- ``+offset``: + the ankle-to-keypoint offset;
+- ``+bridge`` (the default config): + a second pass with the swing gaps bridged to where the
+  foot is seen again (``pipeline.bridge_gaps``).
 
 ``--segmenter oracle`` replaces the network by the session's true label maps (what the
 pipeline reaches with a perfect segmenter); otherwise an ONNX file (default: the committed one).
@@ -64,7 +66,7 @@ class OracleSegmenter:
         return self.labels[self._key(rgb)][None]
 
 
-DEFAULT = "+offset (default)"
+DEFAULT = "+bridge (default)"
 
 
 def variants(base: InferConfig) -> dict[str, InferConfig]:
@@ -81,10 +83,12 @@ def variants(base: InferConfig) -> dict[str, InferConfig]:
     )
     constraints = replace(thesis, fixed_lengths=True, knee_hinge=True, rom_limits=True)
     robust = replace(constraints, robust_foot=True, flat_foot_contact=True, contact_weighting=True)
+    one_pass = replace(base, pipeline=replace(base.pipeline, bridge_gaps=False))
     return {
-        "thesis": replace(base, correction=thesis),
-        "+constraints": replace(base, correction=constraints),
-        "+robust/contact": replace(base, correction=robust),
+        "thesis": replace(one_pass, correction=thesis),
+        "+constraints": replace(one_pass, correction=constraints),
+        "+robust/contact": replace(one_pass, correction=robust),
+        "+offset": one_pass,
         DEFAULT: base,
     }
 

@@ -14,7 +14,10 @@
    heading-normalised as in training) gives the prior, which the correction (eq. 4.7–4.8,
    :func:`gaitnet.pipeline.pose_correction.correct_pose`) pulls towards the pelvis pose from the
    filter, the measured feet and, with ``correction.contact_weighting``, the stance intervals of
-   the filter's stance feet. The first 10 poses are the standing pose.
+   the filter's stance feet. The first 10 poses are the standing pose. With
+   ``pipeline.bridge_gaps`` the correction runs a second time, each foot's swing gap measured
+   at the first pass's foot path bridged to where the foot is seen again
+   (:mod:`gaitnet.pipeline.gap_bridge`).
 5. Forward kinematics give the joints, and the shoe markers (ankle plus the correction's marker
    offset) the gap-free foot trajectories: measured frames and frames filled by prediction
    are flagged.
@@ -39,6 +42,7 @@ from gaitnet.motion.onnx_runtime import OnnxPredictor
 from gaitnet.motion.skeleton import LowerBodySkeleton, builtin_skeleton, forward_kinematics
 from gaitnet.pipeline.config import REFERENCE_HEIGHT_M, InferConfig
 from gaitnet.pipeline.foot_points import FrameFeet, measure_feet
+from gaitnet.pipeline.gap_bridge import bridge_gaps
 from gaitnet.pipeline.pelvis_extrinsic import (
     PelvisExtrinsic,
     estimate_T_PfromC,
@@ -275,6 +279,17 @@ def run_infer(
     return reconstruct(obs, cfg, predictor, progress)
 
 
+def _foot_points(geometry: ChainGeometry, poses: np.ndarray, trans: np.ndarray) -> np.ndarray:
+    """World foot points (n, 2, 3) of ``geometry`` (its foot offset, the skeleton's lengths)
+    for poses (n, 21) and root translations (n, 3)."""
+    n = len(poses)
+    lengths = np.broadcast_to(geometry.lengths, (n, 4)).copy()
+    state = ChainState(
+        R0=so3_exp(poses[:, :3]), t=trans, a=poses[:, 3:].reshape(n, 6, 3), l=lengths
+    )
+    return chain_points(geometry, state)["foot"]
+
+
 def reconstruct(
     obs: Observations,
     cfg: InferConfig,
@@ -310,7 +325,7 @@ def reconstruct(
     t0 = time.perf_counter()
     n_past = predictor.n_past or 10
     start = [_initial_pose(T_WfromP[0], skeleton)] * n_past
-    measurements: Iterable = [
+    frames = [
         FrameMeasurements(
             R_WfromP=T_WfromP[k, :3, :3],
             p_PinW=T_WfromP[k, :3, 3],
@@ -319,6 +334,7 @@ def reconstruct(
         )
         for k in range(n)
     ]
+    measurements: Iterable = frames
     wrap = bar("pose")
     if wrap is not None:
         measurements = wrap(measurements, n)
@@ -330,6 +346,16 @@ def reconstruct(
     corrected, _ = track_poses(predict, start, measurements, skeleton, correction)  # type: ignore[arg-type]
     poses = np.stack([c.pose for c in corrected])
     trans = np.stack([c.trans for c in corrected])
+    if cfg.pipeline.bridge_gaps:
+        geometry = ChainGeometry.build(skeleton, correction)  # the measured points' geometry
+        bridged = bridge_gaps(_foot_points(geometry, poses, trans), ~np.isnan(measured[:, :, 0]))
+        use = ~np.isnan(bridged[:, :, 0])
+        if use.any():
+            feet = np.where(use[:, :, None], bridged, measured)
+            again = [replace(m, foot_W=feet[k]) for k, m in enumerate(frames)]
+            corrected, _ = track_poses(predict, start, again, skeleton, correction)  # type: ignore[arg-type]
+            poses = np.stack([c.pose for c in corrected])
+            trans = np.stack([c.trans for c in corrected])
     timings["pose"] = time.perf_counter() - t0
 
     aa = np.concatenate([poses[:, 3:].reshape(n, 6, 3), np.zeros((n, 2, 3))], axis=1)
@@ -339,12 +365,7 @@ def reconstruct(
         marker_offset=True,
         marker_offset_m=tuple(scale * np.array(cfg.pipeline.marker_offset_m)),
     )
-    geometry = ChainGeometry.build(skeleton, marker)
-    lengths = np.broadcast_to(geometry.lengths, (n, 4)).copy()  # the skeleton's
-    state = ChainState(
-        R0=so3_exp(poses[:, :3]), t=trans, a=poses[:, 3:].reshape(n, 6, 3), l=lengths
-    )
-    feet_W = chain_points(geometry, state)["foot"]
+    feet_W = _foot_points(ChainGeometry.build(skeleton, marker), poses, trans)
     log.info(
         "standing phase %d frames; body height %.2f m; extrinsic spread %.1f mm / %.2f°",
         n_standing,

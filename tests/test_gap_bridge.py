@@ -1,0 +1,119 @@
+"""Bridging swing gaps (gaitnet.pipeline.gap_bridge): known answers, and ``pipeline.bridge_gaps``
+acting in ``reconstruct``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gaitnet.pipeline.gap_bridge import bridge_gaps, gaps
+
+
+def test_gaps_are_the_runs_bounded_on_both_sides() -> None:
+    m = np.array([0, 1, 1, 0, 0, 1, 0, 1, 0, 0], bool)
+    assert gaps(m) == [(3, 5), (6, 7)]
+    assert gaps(np.ones(4, bool)) == [] and gaps(np.zeros(4, bool)) == []
+
+
+def test_constant_speed_spreads_the_discrepancy_evenly() -> None:
+    """A path at constant speed along x, seen again 9 cm further on: the k-th of the gap's
+    frames (of 4, the re-sighting the 5th step) moves by k/5 of it."""
+    n = 10
+    points = np.zeros((n, 1, 3))
+    points[:, 0, 0] = 0.1 * np.arange(n)
+    measured = np.ones((n, 1), bool)
+    measured[3:7] = False
+    points[7, 0] += [0.09, 0.0, -0.02]  # where the foot is seen: ahead and lower
+    out = bridge_gaps(points, measured)
+    assert np.isnan(out[measured[:, 0]]).all()
+    for j, k in enumerate(range(3, 7), start=1):
+        np.testing.assert_allclose(
+            out[k, 0], points[k, 0] + j / 5 * np.array([0.09, 0.0, -0.02]), atol=1e-12
+        )
+
+
+def test_the_discrepancy_goes_where_the_predicted_foot_moves() -> None:
+    """Still for the first half of the gap, then moving: the still frames keep their point."""
+    n = 12
+    x = np.array([0, 0, 0, 0, 0, 0, 0.1, 0.3, 0.5, 0.6, 0.7, 0.8])
+    points = np.zeros((n, 1, 3))
+    points[:, 0, 0] = x
+    measured = np.ones((n, 1), bool)
+    measured[1:9] = False  # f_8 = 0.5, f_7 = 0.3: expected at 9 is 0.7; seen at 0.6
+    out = bridge_gaps(points, measured)
+    np.testing.assert_allclose(out[1:6, 0], points[1:6, 0], atol=1e-12)  # no motion, no change
+    length = np.cumsum(np.abs(np.diff(np.r_[x[:9], 0.7])))
+    w = length / length[-1]
+    np.testing.assert_allclose(out[1:9, 0, 0], x[1:9] + w[:-1] * (0.6 - 0.7), atol=1e-12)
+
+
+def test_unbounded_gaps_are_left_alone_and_bad_shapes_refused() -> None:
+    points = np.random.default_rng(0).normal(size=(6, 2, 3))
+    measured = np.array([[0, 1], [1, 1], [1, 0], [1, 0], [1, 1], [0, 1]], bool)
+    out = bridge_gaps(points, measured)
+    assert np.isnan(out[:, 0]).all()  # left: gaps only at the ends
+    assert np.isfinite(out[2:4, 1]).all() and np.isnan(out[[0, 1, 4, 5], 1]).all()
+    with pytest.raises(ValueError, match="bridge_gaps"):
+        bridge_gaps(points[:, :, :2], measured)
+
+
+def test_bridge_gaps_key_acts(tiny_sim_session: Path, monkeypatch) -> None:
+    """With ``pipeline.bridge_gaps`` the correction runs twice, the second time with the gap
+    frames measured at the bridged points and the seen frames as they were; the result still
+    flags the gap frames as filled. Without it, once."""
+    import gaitnet.pipeline.infer as infer
+    from gaitnet.config import load_config
+    from gaitnet.io import open_session
+    from gaitnet.motion.onnx_runtime import OnnxPredictor
+    from gaitnet.pipeline.config import InferConfig
+    from gaitnet.pipeline.foot_points import FrameFeet
+
+    p_C = np.array([[0.1, 0.5, 1.0], [-0.1, 0.45, 0.9]])
+
+    def fixed_feet(frame, K, T_WfromC, *args, **kwargs) -> FrameFeet:
+        foot_W = p_C @ T_WfromC[:3, :3].T + T_WfromC[:3, 3]
+        if 20 <= frame.index < 30:
+            foot_W[1] = np.nan  # a swing gap of the right foot
+        return FrameFeet(foot_W, np.zeros(frame.depth_m.shape, np.uint8), 2)
+
+    monkeypatch.setattr(infer, "measure_feet", fixed_feet)
+    cfg = load_config(InferConfig, None, ["vio.smoother.enabled=false"])
+    obs = infer.observe(open_session(tiny_sim_session), cfg, segmenter=_NoSegmenter())
+    calls: list[list] = []
+    real = infer.track_poses
+
+    def spy(predict, start, measurements, *args, **kwargs):
+        measurements = list(measurements)
+        calls.append(measurements)
+        return real(predict, start, measurements, *args, **kwargs)
+
+    monkeypatch.setattr(infer, "track_poses", spy)
+    predictor = OnnxPredictor(infer.default_predictor_path())
+    off = infer.reconstruct(
+        obs, load_config(InferConfig, None, ["pipeline.bridge_gaps=false"]), predictor
+    )
+    assert len(calls) == 1
+    calls.clear()
+    on = infer.reconstruct(obs, InferConfig(), predictor)
+    assert len(calls) == 2
+    first = np.array([m.foot_W for m in calls[0]])
+    second = np.array([m.foot_W for m in calls[1]])
+    gap = np.isnan(first[:, 1, 0])
+    assert gap.sum() == 10
+    assert np.isfinite(second).all()
+    np.testing.assert_array_equal(second[~gap], first[~gap])
+    np.testing.assert_array_equal(on.foot_measured, off.foot_measured)
+    assert not on.foot_measured[gap, 1].any()
+    k = np.flatnonzero(gap)
+    assert not np.allclose(on.feet_W[k, 1], off.feet_W[k, 1], atol=1e-4)
+    np.testing.assert_allclose(on.feet_W[: k[0]], off.feet_W[: k[0]], atol=1e-9)
+
+
+class _NoSegmenter:
+    """Never called: ``measure_feet`` is replaced."""
+
+    arch = "rgb"
+    input_scale = 0.5
+    path = Path("none")
