@@ -65,7 +65,7 @@ def score_set(
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("sets", nargs="+", type=Path, help="labelled set folders")
+    ap.add_argument("sets", nargs="+", type=Path, help="labelled set folders or split files")
     ap.add_argument("--model", type=Path, default=None, help="segmenter (default: committed)")
     ap.add_argument(
         "--min-foot-height",

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import io
+import struct
+import zlib
 
 import cv2
 import numpy as np
@@ -18,6 +20,8 @@ KINDS = [
     ((31, 17, 4), np.uint8),
     ((31, 17, 2), np.uint8),
     ((31, 17, 3), np.uint16),
+    ((31, 17, 2), np.uint16),
+    ((31, 17, 4), np.uint16),
     ((1, 1), np.uint8),
     ((1, 9, 3), np.uint8),  # one row: nothing above
     ((9, 1, 3), np.uint8),  # one column: nothing to the left
@@ -71,3 +75,35 @@ def test_header_and_determinism(tmp_path) -> None:
 def test_refuses_what_png_cannot_hold(image) -> None:
     with pytest.raises(ValueError, match="cannot encode"):
         encode_png(image)
+
+
+def _rows(png: bytes) -> bytes:
+    """The inflated scanlines of a PNG with one IDAT chunk."""
+    pos, data = 8, b""
+    while pos < len(png):
+        (length,) = struct.unpack(">I", png[pos : pos + 4])
+        if png[pos + 4 : pos + 8] == b"IDAT":
+            data += png[pos + 8 : pos + 8 + length]
+        pos += 12 + length
+    return zlib.decompress(data)
+
+
+@pytest.mark.parametrize(
+    ("shape", "dtype", "row_filter"),
+    [((6, 5, 3), np.uint8, 3), ((6, 5), np.uint16, 2), ((6, 5), np.uint8, 0)],
+)
+def test_every_row_has_the_kinds_filter(shape, dtype, row_filter) -> None:
+    """Average for colour, Up for 16-bit, none for label maps (PNG filter types 3, 2, 0)."""
+    image = np.random.default_rng(4).integers(0, 200, shape, dtype=dtype)
+    rows = _rows(encode_png(image))
+    stride = 1 + image[0].nbytes
+    assert len(rows) == shape[0] * stride
+    assert {rows[k * stride] for k in range(shape[0])} == {row_filter}
+
+
+def test_views_encode_as_their_values() -> None:
+    """Sliced and column-major arrays encode the values they show."""
+    base = np.random.default_rng(5).integers(0, 256, (40, 30, 3), dtype=np.uint8)
+    for view in (base[::2, 1::3], np.asfortranarray(base), base[:, :, :3][5:20]):
+        decoded = cv2.imdecode(np.frombuffer(encode_png(view), np.uint8), cv2.IMREAD_UNCHANGED)
+        np.testing.assert_array_equal(decoded[..., ::-1], view)

@@ -115,9 +115,9 @@ def _png_chunk(kind: bytes, data: bytes) -> bytes:
     )
 
 
-def _filtered_rows(image: np.ndarray) -> tuple[np.ndarray, int, int]:
+def _filtered_rows(image: np.ndarray) -> tuple[np.ndarray, int]:
     """The PNG scanlines of ``image`` (H, W[, C]) with one fixed filter, a filter-type byte in
-    front of each row; also the filter type and the deflate strategy that suits it.
+    front of each row; also the deflate strategy that suits the filter.
 
     8-bit colour: Average (each byte minus the floor-mean of the byte one pixel left and the
     byte above, both unfiltered) with Huffman-only coding (camera noise leaves few repeats for
@@ -143,7 +143,7 @@ def _filtered_rows(image: np.ndarray) -> tuple[np.ndarray, int, int]:
     rows = np.empty((height, body.shape[1] + 1), np.uint8)
     rows[:, 0] = kind
     rows[:, 1:] = body
-    return rows, kind, strategy
+    return rows, strategy
 
 
 def encode_png(image: np.ndarray) -> bytes:
@@ -158,7 +158,7 @@ def encode_png(image: np.ndarray) -> bytes:
     channels = 1 if image.ndim == 2 else (image.shape[2] if image.ndim == 3 else 0)
     if image.dtype not in (np.uint8, np.uint16) or channels not in _COLOUR_TYPE or 0 in image.shape:
         raise ValueError(f"cannot encode a {image.dtype} {image.shape} image as PNG")
-    rows, _, strategy = _filtered_rows(image)
+    rows, strategy = _filtered_rows(image)
     deflate = zlib_ng.compressobj(3, zlib_ng.DEFLATED, 15, 8, strategy)
     data = deflate.compress(rows) + deflate.flush()
     height, width = image.shape[:2]

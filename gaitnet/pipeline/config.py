@@ -93,8 +93,9 @@ class PipelineParams:
     standing_max_speed_mps: float = 0.05
     """Frames whose camera moves faster than this end the standing phase [m/s]."""
     bridge_gaps: bool = True
-    """Correct the poses a second time with each foot's swing gap bridged to where the foot is
-    seen again (:mod:`gaitnet.pipeline.gap_bridge`; false: the first pass only)."""
+    """Correct the poses a second time with each foot's swing gap bridged to the first pass's
+    foot in the frame where the foot is seen again (:mod:`gaitnet.pipeline.gap_bridge`; false:
+    the first pass only)."""
     marker_offset_m: tuple[float, float, float] = (0.0, -0.011, 0.079)
     """The reported foot point (``feet.csv``, the foot trajectories): the shoe marker over the
     instep, in the ankle frame (SMPL axes: x left, y up, z forward; mirrored for the right

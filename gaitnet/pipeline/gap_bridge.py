@@ -1,12 +1,14 @@
-"""Bridging a foot's swing gap to where the foot is seen again (``pipeline.bridge_gaps``).
+"""Bridging a foot's swing gap to the frame where the foot is seen again
+(``pipeline.bridge_gaps``).
 
 A foot is out of view or hidden for 0.5–0.8 s of every stride (thesis Fig. 5.10); frame by frame
 the pose correction can only follow the motion predictor there, and the predicted foot lags the
 true one in the fast part of the swing, so the corrected foot jumps forward by 10–30 cm when the
-foot is seen again. :func:`bridge_gaps` keeps the predicted path's shape but ends it where the
-foot is seen: over a gap ``a … b−1`` between measured frames ``a−1`` and ``b``, with ``f_k`` the
-first pass's foot point and ``f̂_b = 2 f_{b−1} − f_{b−2}`` where the prediction would have
-been at ``b``, the bridged point is
+foot is seen again. :func:`bridge_gaps` keeps the predicted path's shape but ends it at the first
+pass's (corrected) foot in the frame where the foot is seen again: over a gap ``a … b−1``
+between measured frames ``a−1`` and ``b``, with ``f_k`` the first pass's foot point and
+``f̂_b = 2 f_{b−1} − f_{b−2}`` where the prediction would have been at ``b``, the bridged point
+is
 
     g_k = f_k + w_k (f_b − f̂_b),   w_k = L(a−1 … k) / L(a−1 … b)
 

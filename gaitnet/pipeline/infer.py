@@ -347,12 +347,16 @@ def reconstruct(
     poses = np.stack([c.pose for c in corrected])
     trans = np.stack([c.trans for c in corrected])
     if cfg.pipeline.bridge_gaps:
-        geometry = ChainGeometry.build(skeleton, correction)  # the measured points' geometry
+        # the measured points' geometry, with the skeleton's lengths as the outputs below use
+        geometry = ChainGeometry.build(skeleton, correction)
         bridged = bridge_gaps(_foot_points(geometry, poses, trans), ~np.isnan(measured[:, :, 0]))
         use = ~np.isnan(bridged[:, :, 0])
         if use.any():
             feet = np.where(use[:, :, None], bridged, measured)
-            again = [replace(m, foot_W=feet[k]) for k, m in enumerate(frames)]
+            again: Iterable = [replace(m, foot_W=feet[k]) for k, m in enumerate(frames)]
+            wrap = bar("pose, gaps bridged")
+            if wrap is not None:
+                again = wrap(again, n)
             corrected, _ = track_poses(predict, start, again, skeleton, correction)  # type: ignore[arg-type]
             poses = np.stack([c.pose for c in corrected])
             trans = np.stack([c.trans for c in corrected])

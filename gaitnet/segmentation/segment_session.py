@@ -82,8 +82,8 @@ class SegmentOptions:
     """Frames on the contact sheet, evenly spaced over the session."""
     raw_labels: bool = False
     """Write the network's arg-max label maps instead of the post-processed ones (foot pixels
-    only where the post-processing kept a foot, :func:`~gaitnet.segmentation.postprocess.
-    kept_feet_labels`)."""
+    only where the post-processing kept a foot:
+    :func:`~gaitnet.segmentation.postprocess.kept_feet_labels`)."""
 
     def __post_init__(self) -> None:
         check_positive("gravity_window_s", self.gravity_window_s)

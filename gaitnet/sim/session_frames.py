@@ -23,6 +23,7 @@ milliseconds instead of importing it each; as with ``spawn``, a script that call
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
 import os
 import pickle
@@ -139,7 +140,7 @@ def _slot_maps(buf, cam) -> dict[str, np.ndarray]:
     return maps
 
 
-def _init_worker(job, slots: list) -> None:
+def _init_worker(job: ctypes.Array, slots: list) -> None:
     global _JOB, _SLOTS
     # Ctrl-C reaches the whole process group: the main process stops the pool (its
     # ``terminate``), so a worker ignores SIGINT rather than print a traceback of its own
@@ -264,6 +265,7 @@ def render_frames(job: FrameJob, workers: int | None = None) -> Iterator[FrameOu
     blob = pickle.dumps(job, pickle.HIGHEST_PROTOCOL)  # once, not once per worker,
     shared_job = ctx.RawArray("B", len(blob))  # and shared, not sent through each one's pipe
     memoryview(shared_job).cast("B")[:] = blob
+    del blob
     with ExitStack() as stack:
         with _interrupts_deferred():
             pool = stack.enter_context(
