@@ -12,9 +12,20 @@ from gaitnet.pipeline.gap_bridge import bridge_gaps, gaps
 
 
 def test_gaps_are_the_runs_bounded_on_both_sides() -> None:
-    m = np.array([0, 1, 1, 0, 0, 1, 0, 1, 0, 0], bool)
-    assert gaps(m) == [(3, 5), (6, 7)]
+    m = np.array([1, 1, 0, 0, 1, 1, 0, 1, 1, 0, 0], bool)
+    assert gaps(m) == [(2, 4), (6, 7)]
     assert gaps(np.ones(4, bool)) == [] and gaps(np.zeros(4, bool)) == []
+
+
+def test_a_single_frames_detection_does_not_end_a_gap() -> None:
+    """Seen in frame 4 only, between misses: one gap 2 … 6, bridged over frame 4 to frame 7."""
+    m = np.array([1, 1, 0, 0, 1, 0, 0, 1, 1, 0, 1], bool)
+    assert gaps(m) == [(2, 7)]  # the lone frame 10 at the end bounds nothing either
+    points = np.zeros((11, 1, 3))
+    points[:, 0, 0] = 0.1 * np.arange(11)
+    points[4, 0, 0] += 0.3  # where the false detection pulled the first pass
+    out = bridge_gaps(points, m[:, None])
+    assert np.isfinite(out[2:7, 0]).all() and np.isnan(out[[0, 1, 7, 8, 9, 10], 0]).all()
 
 
 def test_constant_speed_spreads_the_discrepancy_evenly() -> None:
@@ -36,17 +47,16 @@ def test_constant_speed_spreads_the_discrepancy_evenly() -> None:
 
 def test_the_discrepancy_goes_where_the_predicted_foot_moves() -> None:
     """Still for the first half of the gap, then moving: the still frames keep their point."""
-    n = 12
-    x = np.array([0, 0, 0, 0, 0, 0, 0.1, 0.3, 0.5, 0.6, 0.7, 0.8])
-    points = np.zeros((n, 1, 3))
+    x = np.array([0, 0, 0, 0, 0, 0, 0, 0.1, 0.3, 0.5, 0.6, 0.7, 0.8])
+    points = np.zeros((len(x), 1, 3))
     points[:, 0, 0] = x
-    measured = np.ones((n, 1), bool)
-    measured[1:9] = False  # f_8 = 0.5, f_7 = 0.3: expected at 9 is 0.7; seen at 0.6
+    measured = np.ones((len(x), 1), bool)
+    measured[2:10] = False  # f_9 = 0.5, f_8 = 0.3: expected at 10 is 0.7; seen at 0.6
     out = bridge_gaps(points, measured)
-    np.testing.assert_allclose(out[1:6, 0], points[1:6, 0], atol=1e-12)  # no motion, no change
-    length = np.cumsum(np.abs(np.diff(np.r_[x[:9], 0.7])))
+    np.testing.assert_allclose(out[2:7, 0], points[2:7, 0], atol=1e-12)  # no motion, no change
+    length = np.cumsum(np.abs(np.diff(np.r_[x[1:10], 0.7])))
     w = length / length[-1]
-    np.testing.assert_allclose(out[1:9, 0, 0], x[1:9] + w[:-1] * (0.6 - 0.7), atol=1e-12)
+    np.testing.assert_allclose(out[2:10, 0, 0], x[2:10] + w[:-1] * (0.6 - 0.7), atol=1e-12)
 
 
 def test_unbounded_gaps_are_left_alone_and_bad_shapes_refused() -> None:

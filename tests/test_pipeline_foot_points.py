@@ -4,6 +4,8 @@ pose."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -100,3 +102,42 @@ def test_kept_label_map_drops_floor_labelled_foot() -> None:
     assert feet.n_blobs == 0 and np.isnan(feet.foot_W).all()
     assert not (feet.labels == 1).any()
     assert (feet.labels == 2).sum() == 10 * 20
+
+
+class FarAndNearFootSegmenter(RecordingSegmenter):
+    """Two foot blobs on the body's left: a large one far ahead, a small one near."""
+
+    FAR = np.s_[4:24, 22:30]
+    NEAR = np.s_[70:82, 34:44]
+
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        labels = np.zeros((x.shape[0], x.shape[2], x.shape[3]), np.uint8)
+        labels[:, self.FAR[0], self.FAR[1]] = 1
+        labels[:, self.NEAR[0], self.NEAR[1]] = 1
+        return labels
+
+
+def test_a_foot_beyond_reach_is_no_foot() -> None:
+    """With ``feet.max_distance_m`` the far blob (a box on the floor ahead) is dropped before
+    the sides are assigned, so the near one is the left foot on its own; without the limit the
+    far one, more to the left, takes the left side."""
+    frame, T = floor_frame()
+    v, u = np.mgrid[0:H, 0:W].astype(np.float64)
+    rays = np.stack([(u - K[0, 2]) / F, (v - K[1, 2]) / F, np.ones_like(u)], axis=-1)
+    raised = (0.05 - 1.0) / (rays @ T[:3, :3].T)[..., 2]  # a surface 5 cm above the floor
+    depth = frame.depth_m.copy()
+    for region in (FarAndNearFootSegmenter.FAR, FarAndNearFootSegmenter.NEAR):
+        depth[region] = raised[region]
+    frame = Frame(index=0, t_ns=0, rgb=frame.rgb, depth_m=depth)
+    cfg = InferConfig()
+    seg = FarAndNearFootSegmenter(0.5)
+
+    def feet_with(max_distance_m: float) -> np.ndarray:
+        params = replace(cfg.feet, max_distance_m=max_distance_m)
+        return measure_feet(frame, K, T, seg, "mid", cfg.hha, params).foot_W  # type: ignore[arg-type]
+
+    limited, unlimited = feet_with(cfg.feet.max_distance_m), feet_with(float("inf"))
+    reach = [np.hypot(*(p - T[:3, 3])[:2]) for p in (unlimited[0], limited[0])]
+    assert reach[0] > cfg.feet.max_distance_m > reach[1]
+    assert np.isnan(limited[1]).all()  # the near foot alone, sided left
+    np.testing.assert_allclose(unlimited[1], limited[0])  # it was "right" beside the box

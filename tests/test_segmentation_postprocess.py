@@ -278,6 +278,17 @@ def test_every_setting_acts() -> None:
         )
         == []
     )
+    # reach: the box's mid point is this far from the camera along the floor
+    (box,) = foot_keypoints(flab, fdepth, K, NO_SPLIT, gravity_C=g)
+    p_C, up = box.keypoints_C["mid"], -g / np.linalg.norm(g)
+    reach = float(np.linalg.norm(p_C - (p_C @ up) * up))
+    for limit, kept in ((reach + 0.01, 1), (reach - 0.01, 0)):
+        params = FootKeypointParams(split_width_m=0.0, max_distance_m=limit)
+        assert len(foot_keypoints(flab, fdepth, K, params, gravity_C=g)) == kept
+    no_up = FootKeypointParams(split_width_m=0.0, max_distance_m=0.2, use_floor=False)
+    assert len(foot_keypoints(flab, fdepth, K, no_up)) == 1  # no up: no reach to measure
+    with pytest.raises(ValueError, match="max_distance_m"):
+        FootKeypointParams(max_distance_m=float("nan"))
     # the floor fit's settings reach the fit: no floor → no height filter on a floor ring
     ring = np.zeros((H, W), np.uint8)
     rect(ring, 36, 59, 56, 93)

@@ -16,7 +16,9 @@ with ``L`` the horizontal length of the predicted path (``f_{a−1} … f_{b−1
 discrepancy is spread where the predicted foot moves, not evenly in time (spreading it evenly
 in time measured worse: docs/pipeline.md). :func:`gaitnet.pipeline.infer.reconstruct` then runs
 the correction a second time with the bridged points as the feet's measurements in the gaps.
-Gaps at the start or end of the session (not bounded on both sides) are left alone.
+Gaps at the start or end of the session (not bounded on both sides) are left alone; a foot
+seen in a single frame between frames where it is not does not end a gap (:func:`gaps`), and
+the bridge replaces that frame's measurement in the second pass.
 """
 
 from __future__ import annotations
@@ -28,9 +30,12 @@ __all__ = ["bridge_gaps", "gaps"]
 
 
 def gaps(measured: NDArray[np.bool_]) -> list[tuple[int, int]]:
-    """``(a, b)`` of every run of unmeasured frames ``a … b−1`` with measured frames at both
-    ``a − 1`` and ``b``, in order."""
+    """``(a, b)`` of every run of frames ``a … b−1`` where the foot is not seen, with frames
+    where it is seen at both ``a − 1`` and ``b``, in order. A foot measured in one frame only,
+    between frames where it is not, counts as not seen (one frame's detection between misses is
+    as likely a false one, and a bridge must not end on it)."""
     m = np.asarray(measured, dtype=bool)
+    m = m & (np.r_[False, m[:-1]] | np.r_[m[1:], False])
     out = []
     k, n = 0, len(m)
     while k < n:
