@@ -363,8 +363,8 @@ def foot_keypoints(
 def kept_feet_labels(labels: np.ndarray, feet: list[FootDetection]) -> np.ndarray:
     """``labels`` with foot pixels only where the post-processing kept a foot: foot pixels
     outside every detection's mask (floor seen as foot at a blob's rim, pixels off their blob's
-    median depth, blobs too small or dropped by the depth checks) become background; leg and
-    background pixels are unchanged."""
+    median depth, blobs too small, dropped by the depth checks or beyond ``max_distance_m``)
+    become background; leg and background pixels are unchanged."""
     out = np.array(labels, copy=True)
     out[out == FOOT] = 0
     for foot in feet:

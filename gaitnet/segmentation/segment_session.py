@@ -11,8 +11,8 @@ when complete (:func:`gaitnet.io.atomic.staged_folder`):
 - ``labels/<t_ns>.png``: 8-bit label map per frame (0 background, 1 foot, 2 leg), the layout of a
   simulated session's ``groundtruth/labels/`` so ``gaitnet evaluate`` compares them: after the
   post-processing (foot pixels only where it kept a foot: the floor seen as foot at a foot's rim
-  and blobs that fail the depth checks become background), or the network's own arg-max with
-  :attr:`SegmentOptions.raw_labels`;
+  and blobs that fail the depth checks or lie beyond reach become background), or the
+  network's own arg-max with :attr:`SegmentOptions.raw_labels`;
 - ``keypoints.csv``: one row per frame, foot and keypoint (:data:`KEYPOINT_COLUMNS`);
 - ``contact_sheet.png``: evenly spaced frames, RGB with the labels laid over it | label map;
 - ``summary.json``: model, frames, feet seen, where the time went.
