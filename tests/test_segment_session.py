@@ -43,6 +43,18 @@ def tiny_model(tmp_path_factory, tiny_sim_session: Path) -> Path:
     return path
 
 
+def _middle_frame_by_hand(session, model_path: Path):
+    """The session's middle frame and, computed step by step as ``gaitnet segment`` does, the
+    network's labels for it, its gravity and its floor plane."""
+    K = session.calibration.color.K
+    frame = session.frame(len(session) // 2)
+    gravity = accelerometer_gravity_C(session.imu, session.calibration.T_CfromI, frame.t_ns, 1.0)
+    plane = find_floor(frame.depth_m, K, -gravity, HhaParams())
+    hha = hha_encode(frame.depth_m, K, gravity, HhaParams(), plane=plane)
+    raw = OnnxSegmenter(model_path).predict(network_input("fusion", frame.rgb, hha))[0]
+    return frame, raw, gravity, plane
+
+
 def test_segment_matches_a_per_frame_computation(
     tmp_path: Path, tiny_sim_session: Path, tiny_model: Path
 ) -> None:
@@ -52,13 +64,8 @@ def test_segment_matches_a_per_frame_computation(
     session = open_session(tiny_sim_session)
     files = sorted(int(p.stem) for p in (out / "labels").glob("*.png"))
     assert files == sorted(int(t) for t in session.frame_times_ns)
-    model = OnnxSegmenter(tiny_model)
+    frame, raw, gravity, plane = _middle_frame_by_hand(session, tiny_model)
     K = session.calibration.color.K
-    frame = session.frame(len(session) // 2)
-    gravity = accelerometer_gravity_C(session.imu, session.calibration.T_CfromI, frame.t_ns, 1.0)
-    plane = find_floor(frame.depth_m, K, -gravity, HhaParams())
-    hha = hha_encode(frame.depth_m, K, gravity, HhaParams(), plane=plane)
-    raw = model.predict(network_input("fusion", frame.rgb, hha))[0]
     feet = foot_keypoints(raw, frame.depth_m, K, gravity_C=gravity, plane=plane)
     written = cv2.imread(str(out / "labels" / f"{frame.t_ns}.png"), cv2.IMREAD_UNCHANGED)
     np.testing.assert_array_equal(written, kept_feet_labels(raw, feet))
@@ -88,13 +95,7 @@ def test_raw_labels_are_the_networks_own(
     out = tmp_path / "seg"
     args = ["segment", str(tiny_sim_session), "--out", str(out), "--model", str(tiny_model)]
     assert main([*args, "--raw-labels"]) == 0
-    session = open_session(tiny_sim_session)
-    K = session.calibration.color.K
-    frame = session.frame(len(session) // 2)
-    gravity = accelerometer_gravity_C(session.imu, session.calibration.T_CfromI, frame.t_ns, 1.0)
-    plane = find_floor(frame.depth_m, K, -gravity, HhaParams())
-    hha = hha_encode(frame.depth_m, K, gravity, HhaParams(), plane=plane)
-    raw = OnnxSegmenter(tiny_model).predict(network_input("fusion", frame.rgb, hha))[0]
+    frame, raw, _, _ = _middle_frame_by_hand(open_session(tiny_sim_session), tiny_model)
     written = cv2.imread(str(out / "labels" / f"{frame.t_ns}.png"), cv2.IMREAD_UNCHANGED)
     np.testing.assert_array_equal(written, raw)
 
