@@ -43,9 +43,9 @@ from gaitnet.sim.imu import ImuConfig, simulate_imu  # noqa: E402
 from gaitnet.sim.render_prims import leg_sdf, shoe_sdf  # noqa: E402
 from gaitnet.sim.scene_setup import build_scene, rng_streams  # noqa: E402
 from gaitnet.sim.session import simulate_session  # noqa: E402
-from gaitnet.sim.session_frames import default_workers  # noqa: E402
 from gaitnet.sim.strapdown import integrate_imu  # noqa: E402
 from gaitnet.sim.subject import sample_subject  # noqa: E402
+from gaitnet.sim.worker_pool import default_workers  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -223,6 +223,23 @@ def test_wobble_is_a_damped_spring_of_mm_and_tenths_of_a_degree() -> None:
     assert abs(b - cfg.mount.wobble_gain) < 0.03
 
 
+def test_spring_response_is_scipys_bilinear_filter() -> None:
+    # The hand-written Tustin filter against scipy.signal's bilinear + lfilter (independent).
+    from scipy.signal import bilinear, lfilter
+
+    from gaitnet.sim.mount_dynamics import spring_response
+
+    u = np.random.default_rng(3).normal(0.0, 3.0, (4000, 3))
+    w, zeta, gain = 2 * np.pi * 4.5, 0.25, 0.3
+    b, a = bilinear([-gain], [1.0, 2 * zeta * w, w * w], fs=1000.0)
+    expected = lfilter(b, a, u, axis=0)
+    got = spring_response(u, gain, w, zeta, 1000.0)
+    assert np.abs(expected).max() > 1e-4
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+    # one axis at a time is the same as all at once (axis 0 is time)
+    np.testing.assert_array_equal(spring_response(u[:, 1], gain, w, zeta, 1000.0), got[:, 1])
+
+
 def test_camera_poses_and_imu_follow_the_same_rig_motion() -> None:
     """Images and IMU agree: the noise-free IMU of the moving rig integrates back (at 1 kHz:
     the shocks' 10–30 Hz content is resolved) to the IMU poses ``T_WfromC · T_CfromI``."""

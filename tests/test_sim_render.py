@@ -261,6 +261,10 @@ def test_each_floor_family_renders_and_depends_on_the_rng(family):
     b = make_floor(family, np.random.default_rng(2), extent, room_height_m=None)
     assert a.levels[0].shape == (400, 600, 4) and a.levels[0].dtype == np.uint8
     assert not np.array_equal(a.levels[0], b.levels[0])
+    # 400 rows are two bands of texels: generated on two threads, the same texture
+    threaded = make_floor(family, np.random.default_rng(1), extent, room_height_m=None, threads=2)
+    for level, same in zip(a.levels, threaded.levels, strict=True):
+        np.testing.assert_array_equal(level, same)
     w, h = 160, 120
     K = K_of(w, h, 96.0)
     res = render_frame(K, w, h, camera((0.0, 0.0, 1.0), 55.0), a, NO_BODY, APPEARANCE)

@@ -58,6 +58,9 @@ def _cmd_convert(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
+    from gaitnet.sim.worker_pool import start_workers
+
+    start_workers()  # the workers' forkserver imports the simulator while this process does
     from gaitnet.config import dump_config, load_config
     from gaitnet.sim.config import SimConfig
     from gaitnet.sim.session import simulate_session

@@ -21,6 +21,7 @@ extent (``room_height_m``).
 from __future__ import annotations
 
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Literal
 
@@ -340,22 +341,30 @@ _FAMILIES: dict[str, Callable[[np.random.Generator, Extent, float], Family]] = {
 
 
 def _render_family(
-    rng: np.random.Generator, family: str, extent: Extent, texel: float
+    rng: np.random.Generator, family: str, extent: Extent, texel: float, threads: int = 1
 ) -> tuple[NDArray[np.uint8], float]:
-    """Evaluate a family band by band into an sRGB uint8 image (rows along +y)."""
+    """Evaluate a family band by band into an sRGB uint8 image (rows along +y); ``threads``
+    bands at once (each band has its own generator: the same bytes for any number)."""
     evaluate, gloss = _FAMILIES[family](rng, extent, texel)
     (x0, x1), (y0, y1) = extent
     w, h = round((x1 - x0) / texel), round((y1 - y0) / texel)
     xs = (x0 + (np.arange(w) + 0.5) * texel).astype(np.float32)[None, :]
     out = np.full((h, w, 4), 255, np.uint8)
-    seeds = np.random.SeedSequence(int(rng.integers(2**63))).spawn(
-        (h + CHUNK_ROWS - 1) // CHUNK_ROWS
-    )
-    for i, r0 in enumerate(range(0, h, CHUNK_ROWS)):
-        r1 = min(h, r0 + CHUNK_ROWS)
+    starts = range(0, h, CHUNK_ROWS)
+    seeds = np.random.SeedSequence(int(rng.integers(2**63))).spawn(len(starts))
+
+    def band(i: int) -> None:
+        r0, r1 = starts[i], min(h, starts[i] + CHUNK_ROWS)
         ys = (y0 + (np.arange(r0, r1) + 0.5) * texel).astype(np.float32)[:, None]
-        band = _Band(ys, xs, texel, (x0, y0), np.random.default_rng(seeds[i]))
-        out[r0:r1, :, :3] = encode_srgb8(evaluate(band))
+        b = _Band(ys, xs, texel, (x0, y0), np.random.default_rng(seeds[i]))
+        out[r0:r1, :, :3] = encode_srgb8(evaluate(b))
+
+    if threads > 1 and len(starts) > 1:  # OpenCV and NumPy release the GIL in the bulk work
+        with ThreadPoolExecutor(min(threads, len(starts))) as pool:
+            list(pool.map(band, range(len(starts))))
+    else:
+        for i in range(len(starts)):
+            band(i)
     return out, gloss
 
 
@@ -372,11 +381,13 @@ def make_floor(
     texel_m: float = 0.0025,
     boards: tuple[AprilTagBoard, ...] = (),
     room_height_m: float | None = 2.8,
+    threads: int = 1,
 ) -> FloorTexture:
     """A procedural floor of ``family`` (one of :data:`FLOOR_FAMILIES`) over ``extent_xy``.
 
     ``boards`` become A3 tag sheets (decals) lying on the floor; ``room_height_m`` puts walls
-    on the extent's edges and a ceiling at that height (None: floor only).
+    on the extent's edges and a ceiling at that height (None: floor only); ``threads``: bands
+    of the texture generated at once (the same texture for any number).
     """
     if family not in _FAMILIES:
         raise ValueError(f"unknown floor family {family!r}; choose one of {FLOOR_FAMILIES}")
@@ -389,7 +400,7 @@ def make_floor(
             f"floor texture {w}x{h} texels exceeds {MAX_TEXTURE_SIDE} per side; "
             f"use a larger texel_m (now {texel_m}) or a smaller extent"
         )
-    image, gloss = _render_family(rng, family, extent_xy, texel_m)
+    image, gloss = _render_family(rng, family, extent_xy, texel_m, threads)
     levels = build_pyramid(image, texel_m)
     sheets = tuple(make_tag_sheet(b, rng) for b in boards)
     wall = tuple(float(c) for c in _lin((200, 196, 188)) * rng.uniform(0.8, 1.1))

@@ -45,7 +45,13 @@ if TYPE_CHECKING:
     from gaitnet.sim.gait import Walk
     from gaitnet.sim.rig import MountConfig
 
-__all__ = ["GRID_HZ", "MountMotion", "build_mount_motion", "compose_kinematics"]
+__all__ = [
+    "GRID_HZ",
+    "MountMotion",
+    "build_mount_motion",
+    "compose_kinematics",
+    "spring_response",
+]
 
 GRID_HZ = 1000.0  # sampling of e(t) before the spline
 IMPACT_RISE_S = 0.005  # onset time constant of the shock (heel-pad compression)
@@ -150,6 +156,36 @@ def compose_kinematics(parent, child):
     return kin
 
 
+def spring_response(u: np.ndarray, gain: float, w: float, zeta: float, fs: float) -> np.ndarray:
+    """The damped spring ``ẍ + 2ζωẋ + ω²x = −γ u`` driven by ``u`` (N, …) sampled at ``fs``,
+    from rest: the bilinear (Tustin) transform of ``−γ / (s² + 2ζωs + ω²)``, i.e. ``s = k (z −
+    1) / (z + 1)``, ``k = 2 fs``, run as its difference equation along axis 0.
+
+    Written out rather than taken from ``scipy.signal`` (``bilinear`` + ``lfilter`` give the
+    same numbers; a test compares them): importing ``scipy.signal`` pulls in ``scipy.stats``,
+    0.6 s on the critical path of every ``gaitnet simulate`` run.
+    """
+    k = 2.0 * fs
+    a0 = k * k + 2 * zeta * w * k + w * w
+    a1 = (2 * w * w - 2 * k * k) / a0
+    a2 = (k * k - 2 * zeta * w * k + w * w) / a0
+    u = np.asarray(u, np.float64)
+    drive = -gain / a0 * u  # numerator −γ (1 + z⁻¹)²
+    drive[1:] += 2 * (-gain / a0) * u[:-1]
+    drive[2:] += -gain / a0 * u[:-2]
+    flat = drive.reshape(len(drive), -1)
+    out = np.empty_like(flat)
+    for j in range(flat.shape[1]):  # the recursion on Python floats
+        y1 = y2 = 0.0
+        column = []
+        for v in flat[:, j].tolist():
+            y = v - a1 * y1 - a2 * y2
+            column.append(y)
+            y1, y2 = y, y1
+        out[:, j] = column
+    return out.reshape(u.shape)
+
+
 def build_mount_motion(
     walk: Walk, mount: MountConfig, T_PfromC_nominal: np.ndarray, rng: np.random.Generator
 ) -> MountMotion:
@@ -189,13 +225,7 @@ def build_mount_motion(
         u = np.einsum("nji,nj->ni", R_WP, a_P)
         if impacts_on:
             u = u + CubicSpline(t, d_imp)(t, 2)
-        # imported here: scipy.signal (and the scipy.stats it pulls in) is 0.3 s of start-up
-        # that the simulator's worker processes, which never get here, would pay
-        from scipy.signal import bilinear, lfilter
-
         w = 2 * np.pi * mount.wobble_freq_hz
-        b, a = bilinear([-mount.wobble_gain], [1.0, 2 * mount.wobble_damping_ratio * w, w * w],
-                        fs=GRID_HZ)  # fmt: skip
-        x = lfilter(b, a, u, axis=0)
+        x = spring_response(u, mount.wobble_gain, w, mount.wobble_damping_ratio, GRID_HZ)
     spline = CubicSpline(t, np.concatenate([d_imp, x], axis=1))
     return MountMotion(np.asarray(T_PfromC_nominal, np.float64), spline, kappa)

@@ -231,10 +231,11 @@ class SimScene:
         )
 
 
-def build_scene(cfg: SimConfig, rngs: dict[str, np.random.Generator]) -> SimScene:
+def build_scene(cfg: SimConfig, rngs: dict[str, np.random.Generator], threads: int = 1) -> SimScene:
     """The world of one session or one data-set frame (module docstring), drawn from ``rngs``
     (:func:`rng_streams`). Every ``subject``, ``gait``, ``scene`` and ``mount.pitch_deg`` key
-    acts here."""
+    acts here. ``threads``: threads generating the floor texture (the same world for any
+    number)."""
     sc = cfg.subject
     subject = sample_subject(rngs["subject"], sc.height_range_m, sc.height_m)
     walk = generate_walk(subject, cfg.gait, rngs["gait"], sway_rng=rngs["sway"])
@@ -258,6 +259,7 @@ def build_scene(cfg: SimConfig, rngs: dict[str, np.random.Generator]) -> SimScen
         cfg.scene.texel_m,
         boards,
         room_height_m=ROOM_HEIGHT_M if cfg.scene.room else None,
+        threads=threads,
     )
     path_y = float(np.mean(walk.sole_centres(np.array([0.0]))[0, :, 1]))
     clutter = make_clutter(room_rng, extent, cfg.scene.clutter_count, path_y_m=path_y)

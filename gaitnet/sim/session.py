@@ -35,8 +35,9 @@ from gaitnet.sim.groundtruth import GroundTruthWriter
 from gaitnet.sim.imu import draw_imu_calibration, simulate_imu
 from gaitnet.sim.scene import SIDES
 from gaitnet.sim.scene_setup import build_scene, check_seed, rng_streams
-from gaitnet.sim.session_frames import FrameOut, make_job, render_frames, start_workers
+from gaitnet.sim.session_frames import FrameOut, make_job, render_frames
 from gaitnet.sim.subject import Subject
+from gaitnet.sim.worker_pool import default_workers, start_workers
 
 log = logging.getLogger(__name__)
 
@@ -118,9 +119,10 @@ def simulate_session(
     """
     seed = check_seed(seed)
     out_dir = check_output_folder(out_dir, overwrite)
+    workers = default_workers() if workers is None else int(workers)
     start_workers(workers)  # they get ready on another CPU while the world is built
     rngs = rng_streams(seed)
-    scene = build_scene(cfg, rngs)
+    scene = build_scene(cfg, rngs, threads=workers)  # the CPUs the frames will use
     walk, subject, family = scene.walk, scene.subject, scene.floor_family
 
     cam = cfg.camera

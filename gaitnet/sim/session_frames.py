@@ -15,23 +15,20 @@ Because of that latency, :data:`AE_LATENCY` frames can be rendered at once, each
 worker process (``workers``); every frame draws its noise from its own generators (children of
 the ``sensor`` and ``depth`` streams, one per frame), so the output is byte-identical whatever
 the number of workers and their timing. Worker processes are forked from a ``forkserver``
-that has imported the simulator once (``spawn`` where there is none), so they start in
-milliseconds instead of importing it each; as with ``spawn``, a script that calls
-:func:`gaitnet.sim.session.simulate_session` with workers must guard its top level with
-``if __name__ == "__main__":``.
+(:mod:`gaitnet.sim.worker_pool`) that has imported the simulator once (``spawn`` where there
+is none), so they start in milliseconds instead of importing it each; as with ``spawn``, a
+script that calls :func:`gaitnet.sim.session.simulate_session` with workers must guard its top
+level with ``if __name__ == "__main__":``.
 """
 
 from __future__ import annotations
 
 import ctypes
-import multiprocessing
-import os
 import pickle
 import signal
-import threading
 from collections import deque
 from collections.abc import Iterator
-from contextlib import ExitStack, contextmanager
+from contextlib import ExitStack
 from dataclasses import dataclass, replace
 
 import cv2
@@ -42,8 +39,14 @@ from gaitnet.sim.config import SimConfig
 from gaitnet.sim.gait import Walk
 from gaitnet.sim.scene_setup import SimScene
 from gaitnet.sim.sensor_model import apply_sensor, auto_exposure
+from gaitnet.sim.worker_pool import (
+    AE_LATENCY,
+    default_workers,
+    interrupts_deferred,
+    start_forkserver,
+    worker_context,
+)
 
-AE_LATENCY = 2  # frames between an auto-exposure measurement and its effect
 AE_GAIN = 0.25  # share of the measured correction applied per frame
 
 
@@ -157,94 +160,22 @@ def _work(k: int, exposure: float) -> FrameOut:
     return replace(out, depth_m=None, rgb=None, label=None, instance=None)  # in the slot
 
 
-def default_workers() -> int:
-    """Worker processes for a session: 2 where at least 2 CPUs are usable (the main process
-    encodes and writes the PNG files meanwhile, on whichever CPU is free), else 1 (same bytes
-    either way)."""
-    try:
-        cpus = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        cpus = os.cpu_count() or 1
-    return AE_LATENCY if cpus >= 2 else 1
-
-
-def _context() -> multiprocessing.context.BaseContext:
-    """Where worker processes come from: a ``forkserver`` that imported this module (a
-    process forked from this one could hang in OpenCV's thread pool; a ``spawn``-started one
-    spends a second or more importing), else ``spawn``."""
-    if "forkserver" not in multiprocessing.get_all_start_methods():
-        return multiprocessing.get_context("spawn")
-    ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload([__name__])
-    return ctx
-
-
-def start_workers(workers: int | None = None) -> None:
-    """Start the worker processes' forkserver now when :func:`render_frames` will use one
-    (it imports the simulator meanwhile, on another CPU); optional."""
-    workers = default_workers() if workers is None else int(workers)
-    if min(workers, AE_LATENCY) > 1:
-        _start_forkserver(_context())
-
-
-def _start_forkserver(ctx: multiprocessing.context.BaseContext) -> None:
-    """Start ``ctx``'s forkserver, if it uses one and none runs, with SIGINT ignored.
-
-    The forkserver is in the terminal's process group, so Ctrl-C reaches it too; Python keeps
-    a SIGINT ignore inherited from its parent, so it imports the simulator undisturbed and
-    exits when the main process does. The main process ignores SIGINT only for the
-    milliseconds the start takes (the main thread only: elsewhere signals cannot be changed).
-    """
-    if ctx.get_start_method() != "forkserver":
-        return
-    from multiprocessing import forkserver
-
-    if threading.current_thread() is not threading.main_thread():
-        forkserver.ensure_running()
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        forkserver.ensure_running()
-    finally:
-        signal.signal(signal.SIGINT, signal.SIG_DFL if previous is None else previous)
-
-
-@contextmanager
-def _interrupts_deferred() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM while worker processes start, then deliver the first one.
-
-    A signal that interrupts the main process mid-way through sending a new worker its job
-    leaves that worker reading a truncated pickle (it prints a traceback after the CLI's
-    last line); held until the pool exists, the signal stops the pool in order instead.
-    Only the main thread may change signal handlers: elsewhere nothing is held.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    caught: list[int] = []
-    held = (signal.SIGINT, signal.SIGTERM)
-    previous = {s: signal.signal(s, lambda signum, _frame: caught.append(signum)) for s in held}
-    try:
-        yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, signal.SIG_DFL if handler is None else handler)
-        if caught:
-            signal.raise_signal(caught[0])
-
-
 def render_frames(job: FrameJob, workers: int | None = None) -> Iterator[FrameOut]:
     """All frames of ``job`` in order (module docstring).
 
     ``workers`` > 1 renders up to :data:`AE_LATENCY` frames at once in worker processes
-    (:func:`_context`; the job is pickled once into shared memory that every worker reads),
-    with the same bytes as 1; None:
-    :func:`default_workers`.
+    (:func:`gaitnet.sim.worker_pool.worker_context`; the job is pickled once into shared
+    memory that every worker reads), with the same bytes as 1; None:
+    :func:`gaitnet.sim.worker_pool.default_workers`.
     """
     n = len(job.times)
     cam = job.cfg.camera
-    first = job.scene.render(cam, float(job.times[0]), job.T_WfromC[0])
-    ae = [auto_exposure(first.rgb_linear)]  # ae[j + 1]: the loop after measuring frame j
+    ae: list[float] = []  # ae[j + 1]: the loop after measuring frame j
+
+    def converged_on_first() -> None:
+        first = job.scene.render(cam, float(job.times[0]), job.T_WfromC[0])
+        ae.append(auto_exposure(first.rgb_linear))
+
     gain = job.scene.exposure_gain
 
     def exposure_of(k: int) -> float:
@@ -256,21 +187,23 @@ def render_frames(job: FrameJob, workers: int | None = None) -> Iterator[FrameOu
 
     workers = default_workers() if workers is None else int(workers)
     if min(workers, AE_LATENCY, n) <= 1:
+        converged_on_first()
         for k in range(n):
             yield measured(render_one(job, k, exposure_of(k)))
         return
-    ctx = _context()
-    _start_forkserver(ctx)
+    ctx = worker_context()
+    start_forkserver(ctx)
     slots = [ctx.RawArray("B", _slot_size(cam)) for _ in range(AE_LATENCY)]
     blob = pickle.dumps(job, pickle.HIGHEST_PROTOCOL)  # once, not once per worker,
     shared_job = ctx.RawArray("B", len(blob))  # and shared, not sent through each one's pipe
     memoryview(shared_job).cast("B")[:] = blob
     del blob
     with ExitStack() as stack:
-        with _interrupts_deferred():
+        with interrupts_deferred():
             pool = stack.enter_context(
                 ctx.Pool(min(workers, AE_LATENCY), _init_worker, (shared_job, slots))
             )
+        converged_on_first()  # while the workers read the job
         pending: deque = deque(
             pool.apply_async(_work, (k, exposure_of(k))) for k in range(min(n, AE_LATENCY))
         )
