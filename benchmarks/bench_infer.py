@@ -10,8 +10,10 @@ written result folder (``mpjpe_m``, ``foot_nmate_m``, ``foot_nmate_filled_m``,
 - ``+constraints``: + knee hinge, range of motion, fixed thigh / shank lengths;
 - ``+robust/contact``: + Cauchy loss on the feet, flat stance feet, contact weighting;
 - ``+offset``: + the ankle-to-keypoint offset;
-- ``+bridge`` (the default config): + a second pass with the swing gaps bridged to where the
-  foot is seen again (``pipeline.bridge_gaps``).
+- ``+bridge``: + a second pass with the swing gaps bridged to where the foot is seen again
+  (``pipeline.gap_fill: bridge``);
+- ``+swing`` (the default config): the second pass with each unseen swing filled by the
+  template swing between the filter's stance landmarks (``pipeline.gap_fill: swing``).
 
 ``--segmenter oracle`` replaces the network by the session's true label maps (what the
 pipeline reaches with a perfect segmenter); otherwise an ONNX file (default: the committed one).
@@ -66,7 +68,7 @@ class OracleSegmenter:
         return self.labels[self._key(rgb)][None]
 
 
-DEFAULT = "+bridge (default)"
+DEFAULT = "+swing (default)"
 
 
 def variants(base: InferConfig) -> dict[str, InferConfig]:
@@ -83,12 +85,14 @@ def variants(base: InferConfig) -> dict[str, InferConfig]:
     )
     constraints = replace(thesis, fixed_lengths=True, knee_hinge=True, rom_limits=True)
     robust = replace(constraints, robust_foot=True, flat_foot_contact=True, contact_weighting=True)
-    one_pass = replace(base, pipeline=replace(base.pipeline, bridge_gaps=False))
+    one_pass = replace(base, pipeline=replace(base.pipeline, gap_fill="none"))
+    bridge = replace(base, pipeline=replace(base.pipeline, gap_fill="bridge"))
     return {
         "thesis": replace(one_pass, correction=thesis),
         "+constraints": replace(one_pass, correction=constraints),
         "+robust/contact": replace(one_pass, correction=robust),
         "+offset": one_pass,
+        "+bridge": bridge,
         DEFAULT: base,
     }
 

@@ -1,4 +1,4 @@
-"""Bridging swing gaps (gaitnet.pipeline.gap_bridge): known answers, and ``pipeline.bridge_gaps``
+"""Bridging swing gaps (gaitnet.pipeline.gap_bridge): known answers, and ``pipeline.gap_fill``
 acting in ``reconstruct``."""
 
 from __future__ import annotations
@@ -69,10 +69,11 @@ def test_unbounded_gaps_are_left_alone_and_bad_shapes_refused() -> None:
         bridge_gaps(points[:, :, :2], measured)
 
 
-def test_bridge_gaps_key_acts(tiny_sim_session: Path, monkeypatch) -> None:
-    """With ``pipeline.bridge_gaps`` the correction runs twice, the second time with the gap
-    frames measured at the bridged points and the seen frames as they were; the result still
-    flags the gap frames as filled. Without it, once."""
+def test_gap_fill_key_acts(tiny_sim_session: Path, monkeypatch) -> None:
+    """With ``pipeline.gap_fill: bridge`` the correction runs twice, the second time with the
+    gap frames measured at the bridged points and the seen frames as they were; the result
+    still flags the gap frames as filled. With ``none``, once. With ``swing``, the second pass
+    takes the swing fill where it gives a point and the bridge elsewhere."""
     import gaitnet.pipeline.infer as infer
     from gaitnet.config import load_config
     from gaitnet.io import open_session
@@ -111,11 +112,13 @@ def test_bridge_gaps_key_acts(tiny_sim_session: Path, monkeypatch) -> None:
     monkeypatch.setattr(infer, "bridge_gaps", spy_bridge)
     predictor = OnnxPredictor(infer.default_predictor_path())
     off = infer.reconstruct(
-        obs, load_config(InferConfig, None, ["pipeline.bridge_gaps=false"]), predictor
+        obs, load_config(InferConfig, None, ["pipeline.gap_fill=none"]), predictor
     )
     assert len(calls) == 1
     calls.clear()
-    on = infer.reconstruct(obs, InferConfig(), predictor)
+    on = infer.reconstruct(
+        obs, load_config(InferConfig, None, ["pipeline.gap_fill=bridge"]), predictor
+    )
     assert len(calls) == 2
     first = np.array([m.foot_W for m in calls[0]])
     second = np.array([m.foot_W for m in calls[1]])
@@ -135,6 +138,29 @@ def test_bridge_gaps_key_acts(tiny_sim_session: Path, monkeypatch) -> None:
     k = np.flatnonzero(gap)
     assert not np.allclose(on.feet_W[k, 1], off.feet_W[k, 1], atol=1e-4)
     np.testing.assert_allclose(on.feet_W[: k[0]], off.feet_W[: k[0]], atol=1e-9)
+
+    # swing: a fill of the first half of the gap (a stand-in for the template's) replaces the
+    # bridge there; the rest of the gap keeps the bridge
+    half = k[: len(k) // 2]
+    marker = np.array([0.3, -0.2, 0.1])
+
+    def fake_swing(t_s, measured, stance_feet, height, fraction):
+        assert fraction == InferConfig().pipeline.swing_heel_off_fraction
+        out = np.full(np.shape(measured), np.nan)
+        out[half, 1] = marker
+        return out
+
+    monkeypatch.setattr(infer, "swing_fill", fake_swing)
+    calls.clear()
+    bridged.clear()
+    infer.reconstruct(obs, InferConfig(), predictor)
+    assert len(calls) == 2
+    second = np.array([m.foot_W for m in calls[1]])
+    np.testing.assert_array_equal(second[half, 1], np.broadcast_to(marker, (len(half), 3)))
+    ((_, out),) = bridged
+    rest = k[len(k) // 2 :]
+    np.testing.assert_array_equal(second[rest, 1], out[rest, 1])
+    np.testing.assert_array_equal(second[~gap], first[~gap])
 
 
 class _NoSegmenter:

@@ -92,10 +92,15 @@ class PipelineParams:
     extrinsic [s]."""
     standing_max_speed_mps: float = 0.05
     """Frames whose camera moves faster than this end the standing phase [m/s]."""
-    bridge_gaps: bool = True
-    """Correct the poses a second time with each foot's swing gap bridged to the first pass's
-    foot in the frame where the foot is seen again (:mod:`gaitnet.pipeline.gap_bridge`; false:
-    the first pass only)."""
+    gap_fill: Literal["swing", "bridge", "none"] = "swing"
+    """Correct the poses a second time with the frames where a foot is not seen filled in:
+    ``swing``: between two stance landmarks of that foot, the template swing from one rest to
+    the next (:mod:`gaitnet.pipeline.swing_fill`), elsewhere as ``bridge``; ``bridge``: the
+    first pass's foot, bridged to the frame where the foot is seen again
+    (:mod:`gaitnet.pipeline.gap_bridge`); ``none``: the first pass only."""
+    swing_heel_off_fraction: float = 0.75
+    """Time from heel off to the next foot flat as a fraction of the gait cycle, for
+    ``gap_fill: swing`` (heel off at 31–38 % of the cycle, foot flat at 8–10 %)."""
     marker_offset_m: tuple[float, float, float] = (0.0, -0.011, 0.079)
     """The reported foot point (``feet.csv``, the foot trajectories): the shoe marker over the
     instep, in the ankle frame (SMPL axes: x left, y up, z forward; mirrored for the right
@@ -108,6 +113,11 @@ class PipelineParams:
                 f"pipeline.foot_keypoint must be top, mid or bottom, got {self.foot_keypoint!r}"
             )
         check_int_range("pipeline.workers", self.workers, 1, 64)
+        if self.gap_fill not in ("swing", "bridge", "none"):
+            raise ValueError(
+                f"pipeline.gap_fill must be swing, bridge or none, got {self.gap_fill!r}"
+            )
+        check_range("pipeline.swing_heel_off_fraction", self.swing_heel_off_fraction, 0.5, 0.95)
         if self.subject_height_m != 0:
             check_range("pipeline.subject_height_m", self.subject_height_m, 0.8, 2.3, " m")
         check_range("pipeline.camera_height_fraction", self.camera_height_fraction, 0.3, 0.8)

@@ -26,16 +26,21 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["bridge_gaps", "gaps"]
+__all__ = ["bridge_gaps", "gaps", "steadily_seen"]
+
+
+def steadily_seen(measured: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """``measured`` (n,) without the frames measured alone between frames that are not: one
+    frame's detection between misses is as likely a false one, and a gap must not end on it."""
+    m = np.asarray(measured, dtype=bool)
+    return m & (np.r_[False, m[:-1]] | np.r_[m[1:], False])
 
 
 def gaps(measured: NDArray[np.bool_]) -> list[tuple[int, int]]:
     """``(a, b)`` of every run of frames ``a … b−1`` where the foot is not seen, with frames
     where it is seen at both ``a − 1`` and ``b``, in order. A foot measured in one frame only,
-    between frames where it is not, counts as not seen (one frame's detection between misses is
-    as likely a false one, and a bridge must not end on it)."""
-    m = np.asarray(measured, dtype=bool)
-    m = m & (np.r_[False, m[:-1]] | np.r_[m[1:], False])
+    between frames where it is not, counts as not seen (:func:`steadily_seen`)."""
+    m = steadily_seen(measured)
     out = []
     k, n = 0, len(m)
     while k < n:

@@ -52,6 +52,7 @@ from gaitnet.pipeline.pelvis_extrinsic import (
 from gaitnet.pipeline.pose_residuals import ChainGeometry, ChainState, chain_points
 from gaitnet.pipeline.pose_tracking import track_poses
 from gaitnet.pipeline.pose_types import FrameMeasurements, PoseState, R_PfromSMPL
+from gaitnet.pipeline.swing_fill import swing_fill
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
 from gaitnet.vio.result import VioResult
 from gaitnet.vio.run import run_vio
@@ -346,15 +347,20 @@ def reconstruct(
     corrected, _ = track_poses(predict, start, measurements, skeleton, correction)  # type: ignore[arg-type]
     poses = np.stack([c.pose for c in corrected])
     trans = np.stack([c.trans for c in corrected])
-    if cfg.pipeline.bridge_gaps:
+    if cfg.pipeline.gap_fill != "none":
         # the measured points' geometry, with the skeleton's lengths as the outputs below use
         geometry = ChainGeometry.build(skeleton, correction)
-        bridged = bridge_gaps(_foot_points(geometry, poses, trans), ~np.isnan(measured[:, :, 0]))
-        use = ~np.isnan(bridged[:, :, 0])
+        filled = bridge_gaps(_foot_points(geometry, poses, trans), ~np.isnan(measured[:, :, 0]))
+        if cfg.pipeline.gap_fill == "swing":
+            swing = swing_fill(
+                vio.t_s, measured, vio.stance_feet, height, cfg.pipeline.swing_heel_off_fraction
+            )
+            filled = np.where(np.isnan(swing), filled, swing)
+        use = ~np.isnan(filled[:, :, 0])
         if use.any():
-            feet = np.where(use[:, :, None], bridged, measured)
+            feet = np.where(use[:, :, None], filled, measured)
             again: Iterable = [replace(m, foot_W=feet[k]) for k, m in enumerate(frames)]
-            wrap = bar("pose, gaps bridged")
+            wrap = bar("pose, gaps filled")
             if wrap is not None:
                 again = wrap(again, n)
             corrected, _ = track_poses(predict, start, again, skeleton, correction)  # type: ignore[arg-type]

@@ -1,0 +1,118 @@
+"""Swing fill between stance landmarks (gaitnet.pipeline.swing_fill): known answers, the
+guards, and the committed template against a fresh derivation from the gait generator."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gaitnet.pipeline.swing_fill import (
+    SWING_LIFT,
+    SWING_PROGRESS,
+    SWING_TAU,
+    swing_fill,
+)
+from gaitnet.vio.result import StanceFoot
+
+FPS = 30.0
+H = 1.75
+
+
+def _rest(side: str, t0: float, t1: float, x: float) -> StanceFoot:
+    return StanceFoot(0, side, t0, t1, np.array([x, 0.1]), np.full(2, 0.01), 10)
+
+
+def _walk(
+    rests: list[tuple[float, float, float]], n: int = 90
+) -> tuple[np.ndarray, np.ndarray, list[StanceFoot]]:
+    """Frames at 30/s; the left foot measured only while resting at x (1 cm above the floor),
+    the right foot never."""
+    t = np.arange(n) / FPS
+    measured = np.full((n, 2, 3), np.nan)
+    feet = []
+    for t0, t1, x in rests:
+        inside = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
+        measured[inside, 0] = [x, 0.1, 0.01]
+        feet.append(_rest("left", t0, t1, x))
+    return t, measured, feet
+
+
+def test_known_answer_at_heel_off_mid_swing_and_landing() -> None:
+    # rest 1 at x = 0 from 0 to 0.6 s, rest 2 at x = 1.2 m from 1.2 s: cycle 1.2 s, heel off
+    # 0.75 · 1.2 = 0.9 s before the second foot flat → 0.3 s, clamped to the last rest frame 0.6 s
+    t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)])
+    out = swing_fill(t, measured, feet, H)
+    gap = (t > 0.6 + 1e-9) & (t < 1.2 - 1e-9)
+    assert np.isfinite(out[gap, 0]).all()
+    assert np.isnan(out[~gap, 0]).all() and np.isnan(out[:, 1]).all()  # right: no landmarks
+    # at t = 0.9 s, half-way from heel off (0.6 s) to foot flat (1.2 s): τ = 0.5, a grid point
+    k = int(round(0.9 * FPS))
+    i = int(np.flatnonzero(np.isclose(SWING_TAU, 0.5))[0])
+    expected = np.array([SWING_PROGRESS[i] * 1.2, 0.1, 0.01 + SWING_LIFT[i] * H])
+    np.testing.assert_allclose(out[k, 0], expected, atol=1e-12)
+    # the path moves forward only, and lands: just before foot flat it is within 1 cm
+    x = out[gap, 0, 0]
+    assert (np.diff(x) >= -1e-12).all()
+    assert abs(out[int(round(1.2 * FPS)) - 1, 0, 0] - 1.2) < 0.01
+
+
+def test_heel_off_from_the_cycle_when_the_foot_is_seen_resting_late() -> None:
+    # the first rest is seen until 0.2 s only; cycle 1.6 s: heel off = 1.6 − 0.75 · 1.6 = 0.4 s,
+    # so the foot still rests (progress 0) at 0.4 s and is half-way (τ = 0.5) at 1.0 s
+    t, measured, feet = _walk([(0.0, 0.2, 0.0), (1.6, 2.5, 1.0)])
+    out = swing_fill(t, measured, feet, H)
+    np.testing.assert_allclose(out[int(round(0.4 * FPS)), 0], [0.0, 0.1, 0.01], atol=1e-12)
+    i = int(np.flatnonzero(np.isclose(SWING_TAU, 0.5))[0])
+    np.testing.assert_allclose(out[int(round(1.0 * FPS)), 0, 0], SWING_PROGRESS[i], atol=1e-12)
+    # a smaller heel-off fraction starts the swing later
+    later = swing_fill(t, measured, feet, H, heel_off_fraction=0.6)
+    assert later[int(round(1.0 * FPS)), 0, 0] < out[int(round(1.0 * FPS)), 0, 0]
+
+
+def test_seen_frames_keep_their_measurement_and_a_blip_is_filled() -> None:
+    t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)])
+    measured[25, 0] = [0.5, 0.1, 0.05]  # seen once alone (a false detection): filled over
+    measured[30:32, 0] = [0.7, 0.1, 0.08]  # seen in two frames: kept
+    out = swing_fill(t, measured, feet, H)
+    assert np.isfinite(out[25, 0]).all() and not np.allclose(out[25, 0], measured[25, 0])
+    assert np.isnan(out[30:32, 0]).all()
+
+
+@pytest.mark.parametrize(
+    "rests",
+    [
+        [(0.0, 0.2, 0.0), (0.3, 2.0, 0.4)],  # a 0.3 s "cycle": not one stride of one foot
+        [(0.0, 0.6, 0.0), (1.2, 2.0, 3.0)],  # a 3 m "stride"
+    ],
+)
+def test_implausible_landmark_pairs_are_skipped(rests) -> None:
+    t, measured, feet = _walk(rests)
+    assert np.isnan(swing_fill(t, measured, feet, H)).all()
+
+
+def test_a_rest_without_a_measured_point_is_skipped_and_shapes_are_checked() -> None:
+    t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)])
+    measured[: int(0.6 * FPS) + 1, 0] = np.nan
+    assert np.isnan(swing_fill(t, measured, feet, H)).all()
+    with pytest.raises(ValueError, match="swing_fill"):
+        swing_fill(t, measured[:, :, :2], feet, H)
+
+
+def test_template_shape() -> None:
+    assert SWING_PROGRESS[0] == 0 and SWING_PROGRESS[-1] == 1
+    assert (np.diff(SWING_PROGRESS) >= 0).all()
+    assert SWING_LIFT[0] == 0 and SWING_LIFT[-1] == 0 and (SWING_LIFT >= 0).all()
+    assert len(SWING_TAU) == len(SWING_PROGRESS) == len(SWING_LIFT)
+
+
+def test_committed_template_is_the_gait_generators() -> None:
+    """A fresh derivation on fewer walks (other subjects) agrees with the committed table
+    within a fraction of the swing-to-swing spread."""
+    from gaitnet.sim.swing_profile import derive_swing_template
+
+    fresh = derive_swing_template(SWING_TAU, speeds_mps=(0.8, 1.2, 1.6), subjects=2, seed=7)
+    assert fresh["swings"][0] > 40
+    spread = np.maximum(fresh["progress_std"], 0.01)
+    assert (np.abs(fresh["progress"] - SWING_PROGRESS) < spread).all()
+    assert np.abs(fresh["lift"] - SWING_LIFT).max() < 0.005
+    assert abs(fresh["fraction"][0] - 0.75) < 0.03
