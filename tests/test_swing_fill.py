@@ -69,6 +69,18 @@ def test_heel_off_from_the_cycle_when_the_foot_is_seen_resting_late() -> None:
     assert later[int(round(1.0 * FPS)), 0, 0] < out[int(round(1.0 * FPS)), 0, 0]
 
 
+def test_a_standing_start_takes_the_feet_median_cycle() -> None:
+    # standing until 1.4 s, then a foot flat every 1.2 s: the first pair's 2.5 s "cycle" is
+    # replaced by the median 1.2 s, so heel off is 2.5 − 0.9 = 1.6 s, not the last rest frame
+    rests = [(0.0, 1.4, 0.0), (2.5, 3.3, 1.2), (3.7, 4.5, 2.4), (4.9, 5.7, 3.6), (6.1, 6.9, 4.8)]
+    t, measured, feet = _walk(rests, n=210)
+    out = swing_fill(t, measured, feet, H)
+    np.testing.assert_allclose(out[int(round(1.5 * FPS)), 0], [0.0, 0.1, 0.01], atol=1e-12)
+    k = int(round(2.0 * FPS))  # τ = (2.0 − 1.6) / 0.9
+    expected = np.interp(0.4 / 0.9, SWING_TAU, SWING_PROGRESS) * 1.2
+    np.testing.assert_allclose(out[k, 0, 0], expected, atol=1e-12)
+
+
 def test_seen_frames_keep_their_measurement_and_a_blip_is_filled() -> None:
     t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)])
     measured[25, 0] = [0.5, 0.1, 0.05]  # seen once alone (a false detection): filled over
@@ -83,6 +95,7 @@ def test_seen_frames_keep_their_measurement_and_a_blip_is_filled() -> None:
     [
         [(0.0, 0.2, 0.0), (0.3, 2.0, 0.4)],  # a 0.3 s "cycle": not one stride of one foot
         [(0.0, 0.6, 0.0), (1.2, 2.0, 3.0)],  # a 3 m "stride"
+        [(0.0, 0.6, 0.0), (1.2, 2.0, 0.1)],  # a 10 cm shuffle, or one stance seen as two
     ],
 )
 def test_implausible_landmark_pairs_are_skipped(rests) -> None:

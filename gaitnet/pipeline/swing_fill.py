@@ -14,7 +14,9 @@ walking foot has a stereotyped shape, which this module lays between the two res
 - ``p₀``, ``p₁``: the median measured foot point over the frames of each stance (the points
   the correction is given, so the fill is the same kind of point);
 - ``t_FF′``: the next landmark's first frame time; ``t_HO``, heel off of the first stance,
-  ``t_FF′ − c · T`` with ``T`` the landmarks' foot-flat to foot-flat time (one gait cycle) and
+  ``t_FF′ − c · T`` with ``T`` the landmarks' foot-flat to foot-flat time (one gait cycle; the
+  foot's median one when they differ by more than :data:`CYCLE_TOLERANCE`, as after a
+  standing start, where the first landmark began long before the foot flat) and
   ``c`` = ``pipeline.swing_heel_off_fraction`` (0.75: heel off at 31–38 % of the cycle and foot
   flat at 8–10 % of the next, docs/references.md *Gait phases*), and never before the last
   frame the filter saw the foot resting;
@@ -27,9 +29,9 @@ walking foot has a stereotyped shape, which this module lays between the two res
 
 Only frames where the foot is not steadily seen (:func:`gaitnet.pipeline.gap_bridge.steadily_seen`)
 between the two landmarks are filled; a pair of landmarks is skipped when it cannot be one
-stride of one foot (:data:`CYCLE_RANGE_S`, :data:`MAX_STRIDE_M`) or either stance has no
-measured point. :func:`gaitnet.pipeline.infer.reconstruct` runs the pose correction a second
-time with the filled points as that foot's measurements.
+stride of one foot (:data:`CYCLE_RANGE_S`, :data:`MIN_STRIDE_M`, :data:`MAX_STRIDE_M`) or
+either stance has no measured point. :func:`gaitnet.pipeline.infer.reconstruct` runs the pose
+correction a second time with the filled points as that foot's measurements.
 """
 
 from __future__ import annotations
@@ -43,7 +45,9 @@ from gaitnet.vio.result import StanceFoot
 
 __all__ = [
     "CYCLE_RANGE_S",
+    "CYCLE_TOLERANCE",
     "MAX_STRIDE_M",
+    "MIN_STRIDE_M",
     "SWING_LIFT",
     "SWING_PROGRESS",
     "SWING_TAU",
@@ -63,6 +67,8 @@ SWING_LIFT = np.array([
 ])
 # fmt: on
 CYCLE_RANGE_S = (0.5, 3.0)  # foot flat to foot flat of one foot, slow to fast walking
+CYCLE_TOLERANCE = 0.25  # a pair's cycle further than this from the foot's median is not used
+MIN_STRIDE_M = 0.2  # shorter: a shuffle or one stance seen as two, not a swing
 MAX_STRIDE_M = 2.2  # longer than any walking stride
 
 
@@ -87,13 +93,20 @@ def swing_fill(
     for s, side in enumerate(SIDES):
         seen = steadily_seen(~np.isnan(measured[:, s, 0]))
         rests = sorted((f for f in stance_feet if f.side == side), key=lambda f: f.t_first_s)
-        for before, after in zip(rests, rests[1:], strict=False):
-            cycle = after.t_first_s - before.t_first_s
+        pairs = list(zip(rests, rests[1:], strict=False))
+        cycles = np.array([b.t_first_s - a.t_first_s for a, b in pairs])
+        plausible = cycles[(cycles >= CYCLE_RANGE_S[0]) & (cycles <= CYCLE_RANGE_S[1])]
+        typical = float(np.median(plausible)) if plausible.size else np.nan
+        for (before, after), cycle in zip(pairs, cycles, strict=True):
             if not CYCLE_RANGE_S[0] <= cycle <= CYCLE_RANGE_S[1]:
                 continue
+            if abs(cycle - typical) > CYCLE_TOLERANCE * typical:
+                cycle = typical  # a landmark first seen late or early (a standing start)
             p0 = _rest_point(t_s, measured[:, s], seen, before)
             p1 = _rest_point(t_s, measured[:, s], seen, after)
-            if p0 is None or p1 is None or np.hypot(*(p1 - p0)[:2]) > MAX_STRIDE_M:
+            if p0 is None or p1 is None:
+                continue
+            if not MIN_STRIDE_M <= np.hypot(*(p1 - p0)[:2]) <= MAX_STRIDE_M:
                 continue
             heel_off = max(after.t_first_s - heel_off_fraction * cycle, before.t_last_s)
             window = (t_s > before.t_last_s) & (t_s < after.t_first_s) & ~seen

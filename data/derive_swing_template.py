@@ -1,0 +1,46 @@
+"""Derive the swing template of ``gaitnet infer``'s gap fill from the gait generator.
+
+    python data/derive_swing_template.py [--subjects 6] [--seed 0]
+
+Prints the instep marker's mean progress and lift from heel off to the next foot flat
+(:mod:`gaitnet.sim.swing_profile`) over random subjects walking 10 m at 0.8–1.6 m/s, at the 21
+template points, as the arrays ``SWING_PROGRESS`` and ``SWING_LIFT`` of
+``gaitnet/pipeline/swing_fill.py`` (the committed table is this script's output with the
+defaults), with their swing-to-swing spread and the heel-off share of the gait cycle
+(``pipeline.swing_heel_off_fraction``).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from gaitnet.pipeline.swing_fill import SWING_TAU
+from gaitnet.sim.swing_profile import derive_swing_template
+
+
+def _row(values: np.ndarray) -> str:
+    return ", ".join(f"{v:.4f}" for v in values)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--subjects", type=int, default=6, help="subjects per speed (default 6)")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args(argv)
+    if args.subjects < 1:
+        ap.error("--subjects must be at least 1")
+    t = derive_swing_template(SWING_TAU, subjects=args.subjects, seed=args.seed)
+    print(f"{int(t['swings'][0])} swings")
+    print(f"SWING_PROGRESS = [{_row(t['progress'])}]")
+    print(f"  spread (std)   [{_row(t['progress_std'])}]")
+    print(f"SWING_LIFT = [{_row(t['lift'])}]")
+    print(f"  spread (std)   [{_row(t['lift_std'])}]")
+    mean, std = t["fraction"]
+    print(f"heel off to next foot flat: {mean:.3f} ± {std:.3f} of the gait cycle")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
