@@ -112,6 +112,9 @@ def _simulated_clips(n: int, folder: Path, seed: int) -> list[Path]:
 
 
 def _report(name: str, scores: dict[str, list[float]]) -> None:
+    if not scores["fill"]:
+        print(f"{name:10s} no swing between two rests was found")
+        return
     fill, line = np.array(scores["fill"]), np.array(scores["line"])
     frac = np.array(scores["fraction"])
     print(

@@ -302,7 +302,12 @@ def _build(cls: type[T], data: Any, source: str, prefix: str) -> T:
         raise ConfigError(f"{source}: key '{where}' must be a mapping, got {data!r}")
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    replaced: dict[str, str] = getattr(cls, "REPLACED_KEYS", {})
     for key in data:
+        if key in replaced and key not in fields:
+            raise ConfigError(
+                f"{source}: key '{prefix}{key}' was replaced by '{prefix}{replaced[key]}'"
+            )
         if key not in fields:
             known = ", ".join(sorted(fields))
             raise ConfigError(f"{source}: unknown key '{prefix}{key}' (known keys: {known})")

@@ -128,3 +128,20 @@ def test_exponent_numbers_duplicate_keys_and_literal_types(tmp_path: Path) -> No
     with pytest.raises(ConfigError, match="'level' must be one of 1, 2, got True"):
         load_config(Choice, None, ["level=true"])
     assert load_config(Choice, None, ["level=2"]).level == 2
+
+
+def test_a_replaced_key_names_its_replacement(tmp_path: Path) -> None:
+    from gaitnet.pipeline.config import InferConfig
+
+    path = tmp_path / "old_infer_config.yaml"
+    path.write_text("pipeline:\n  bridge_gaps: true\n")
+    with pytest.raises(
+        ConfigError,
+        match=r"old_infer_config.yaml.*'pipeline.bridge_gaps' was "
+        r"replaced by 'pipeline.gap_fill",
+    ):
+        load_config(InferConfig, path)
+    # the replacement is accepted
+    assert (
+        load_config(InferConfig, None, ["pipeline.gap_fill=bridge"]).pipeline.gap_fill == "bridge"
+    )

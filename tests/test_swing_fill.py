@@ -81,6 +81,46 @@ def test_a_standing_start_takes_the_feet_median_cycle() -> None:
     np.testing.assert_allclose(out[k, 0, 0], expected, atol=1e-12)
 
 
+def test_two_pairs_keep_their_own_cycles() -> None:
+    # a standing start and one stride: too few pairs for a typical cycle, so each pair keeps
+    # its own and heel off is clamped to the last rest frame (1.4 s, then 3.3 s)
+    t, measured, feet = _walk([(0.0, 1.4, 0.0), (2.5, 3.3, 1.2), (3.7, 4.5, 2.4)], n=150)
+    out = swing_fill(t, measured, feet, H)
+    k = int(round(2.0 * FPS))
+    expected = np.interp((2.0 - 1.4) / 1.1, SWING_TAU, SWING_PROGRESS) * 1.2
+    np.testing.assert_allclose(out[k, 0, 0], expected, atol=1e-12)
+    k = int(round(3.5 * FPS))
+    expected = 1.2 + np.interp((3.5 - 3.3) / 0.4, SWING_TAU, SWING_PROGRESS) * 1.2
+    np.testing.assert_allclose(out[k, 0, 0], expected, atol=1e-12)
+
+
+def test_a_missed_rest_leaves_its_two_strides_unfilled() -> None:
+    # a foot flat every 1.3 s, 0.9 m apart; the rest at 3.9 s was not seen: the 2.6 s pair
+    # across it is one swing over two strides, and is not filled; the others are
+    rests = [(1.3 * i, 1.3 * i + 0.6, 0.9 * i) for i in range(7) if i != 3]
+    t, measured, feet = _walk(rests, n=280)
+    out = swing_fill(t, measured, feet, H)
+    across = (t > 2.6 + 0.6 + 1e-9) & (t < 5.2 - 1e-9)
+    assert np.isnan(out[across, 0]).all()
+    other = (t > 5.2 + 0.6 + 1e-9) & (t < 6.5 - 1e-9)
+    assert np.isfinite(out[other, 0]).all()
+
+
+@pytest.mark.parametrize("case", ["no rests", "overlapping", "never measured", "nan height"])
+def test_degenerate_inputs_fill_nothing(case: str) -> None:
+    t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)])
+    if case == "no rests":
+        feet = []
+    elif case == "overlapping":
+        feet = [_rest("left", 0.0, 1.5, 0.0), _rest("left", 1.2, 2.0, 1.2)]
+    elif case == "never measured":
+        measured[:, 0] = np.nan
+    else:  # x measured, the height not: not a measurement
+        measured[:, 0, 2] = np.nan
+    out = swing_fill(t, measured, feet, H)
+    assert out.shape == measured.shape and np.isnan(out).all()
+
+
 def test_seen_frames_keep_their_measurement_and_a_blip_is_filled() -> None:
     t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)])
     measured[25, 0] = [0.5, 0.1, 0.05]  # seen once alone (a false detection): filled over

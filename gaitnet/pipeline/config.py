@@ -11,7 +11,7 @@ files and ``pipeline`` how the stages are joined (:class:`PipelineParams`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import ClassVar, Literal
 
 from gaitnet.checks import check_int_range, check_range
 from gaitnet.pipeline.pose_types import PoseCorrectionParams
@@ -74,6 +74,12 @@ class ModelParams:
 class PipelineParams:
     """How the filter, the segmenter, the predictor and the correction are joined."""
 
+    # keys of older configs (an ``infer_config.yaml`` of an earlier result) and what took
+    # their place: named in the error instead of "unknown key"
+    REPLACED_KEYS: ClassVar[dict[str, str]] = {
+        "bridge_gaps": "gap_fill (swing | bridge | none; bridge_gaps: false was none)"
+    }
+
     foot_keypoint: Literal["top", "mid", "bottom"] = "mid"
     """Which keypoint of eq. 4.1 is a foot's measured point (``mid``: the middle of the visible
     shoe, nearest the instep marker the pose correction's offset points to)."""
@@ -100,7 +106,8 @@ class PipelineParams:
     (:mod:`gaitnet.pipeline.gap_bridge`); ``none``: the first pass only."""
     swing_heel_off_fraction: float = 0.75
     """Time from heel off to the next foot flat as a fraction of the gait cycle, for
-    ``gap_fill: swing`` (heel off at 31–38 % of the cycle, foot flat at 8–10 %)."""
+    ``gap_fill: swing`` (heel off at about 31–34 % of the cycle, foot flat at 8–10 % of the
+    next: docs/references.md)."""
     marker_offset_m: tuple[float, float, float] = (0.0, -0.011, 0.079)
     """The reported foot point (``feet.csv``, the foot trajectories): the shoe marker over the
     instep, in the ankle frame (SMPL axes: x left, y up, z forward; mirrored for the right

@@ -1,5 +1,5 @@
 """Bridging a foot's swing gap to the frame where the foot is seen again
-(``pipeline.bridge_gaps``).
+(``pipeline.gap_fill: bridge``, and with ``swing`` where no two stance landmarks bound a gap).
 
 A foot is out of view or hidden for 0.5–0.8 s of every stride (thesis Fig. 5.10); frame by frame
 the pose correction can only follow the motion predictor there, and the predicted foot lags the

@@ -14,10 +14,12 @@
    heading-normalised as in training) gives the prior, which the correction (eq. 4.7–4.8,
    :func:`gaitnet.pipeline.pose_correction.correct_pose`) pulls towards the pelvis pose from the
    filter, the measured feet and, with ``correction.contact_weighting``, the stance intervals of
-   the filter's stance feet. The first 10 poses are the standing pose. With
-   ``pipeline.bridge_gaps`` the correction runs a second time, each foot's swing gap measured
-   at the first pass's foot path bridged to where the foot is seen again
-   (:mod:`gaitnet.pipeline.gap_bridge`).
+   the filter's stance feet. The first 10 poses are the standing pose. Unless
+   ``pipeline.gap_fill`` is ``none`` the correction runs a second time with each foot's unseen
+   frames measured: between two stance landmarks of the foot at a template swing from one
+   rest to the next (``swing``, :mod:`gaitnet.pipeline.swing_fill`), elsewhere (and
+   everywhere with ``bridge``) at the first pass's foot path bridged to where the foot is seen
+   again (:mod:`gaitnet.pipeline.gap_bridge`).
 5. Forward kinematics give the joints, and the shoe markers (ankle plus the correction's marker
    offset) the gap-free foot trajectories: measured frames and frames filled by prediction
    are flagged.

@@ -14,10 +14,12 @@ walking foot has a stereotyped shape, which this module lays between the two res
 - ``p₀``, ``p₁``: the median measured foot point over the frames of each stance (the points
   the correction is given, so the fill is the same kind of point);
 - ``t_FF′``: the next landmark's first frame time; ``t_HO``, heel off of the first stance,
-  ``t_FF′ − c · T`` with ``T`` the landmarks' foot-flat to foot-flat time (one gait cycle; the
-  foot's median one when they differ by more than :data:`CYCLE_TOLERANCE`, as after a
-  standing start, where the first landmark began long before the foot flat) and
-  ``c`` = ``pipeline.swing_heel_off_fraction`` (0.75: heel off at 31–38 % of the cycle and foot
+  ``t_FF′ − c · T`` with ``T`` the landmarks' foot-flat to foot-flat time (one gait cycle;
+  the typical cycle — the median over both feet's pairs but each foot's first, given
+  :data:`MIN_REFERENCES` of them — where the pair's differs from it by more than
+  :data:`CYCLE_TOLERANCE`: a standing start, where the first landmark began long before the
+  foot flat, or a landmark first seen late) and
+  ``c`` = ``pipeline.swing_heel_off_fraction`` (0.75: heel off at 31–34 % of the cycle and foot
   flat at 8–10 % of the next, docs/references.md *Gait phases*), and never before the last
   frame the filter saw the foot resting;
 - ``ρ`` (0 → 1, :data:`SWING_PROGRESS`) and ``λ`` (:data:`SWING_LIFT`, a fraction of the body
@@ -29,25 +31,31 @@ walking foot has a stereotyped shape, which this module lays between the two res
 
 Only frames where the foot is not steadily seen (:func:`gaitnet.pipeline.gap_bridge.steadily_seen`)
 between the two landmarks are filled; a pair of landmarks is skipped when it cannot be one
-stride of one foot (:data:`CYCLE_RANGE_S`, :data:`MIN_STRIDE_M`, :data:`MAX_STRIDE_M`) or
-either stance has no measured point. :func:`gaitnet.pipeline.infer.reconstruct` runs the pose
+stride of one foot (:data:`CYCLE_RANGE_S`, :data:`MIN_STRIDE_M`, :data:`MAX_STRIDE_M`), when
+it spans a missed landmark (a stride over :data:`STRIDE_OUTLIER` times the typical one, or a
+cycle longer than the typical one by more than the tolerance, but for a foot's first pair), or
+when either stance has no measured point. :func:`gaitnet.pipeline.infer.reconstruct` runs the pose
 correction a second time with the filled points as that foot's measurements.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from gaitnet.pipeline.gap_bridge import steadily_seen
+from gaitnet.vio.gait import Stance, merge_split_stances
 from gaitnet.vio.result import StanceFoot
 
 __all__ = [
     "CYCLE_RANGE_S",
     "CYCLE_TOLERANCE",
     "MAX_STRIDE_M",
+    "MIN_REFERENCES",
     "MIN_STRIDE_M",
+    "STRIDE_OUTLIER",
     "SWING_LIFT",
     "SWING_PROGRESS",
     "SWING_TAU",
@@ -67,9 +75,28 @@ SWING_LIFT = np.array([
 ])
 # fmt: on
 CYCLE_RANGE_S = (0.5, 3.0)  # foot flat to foot flat of one foot, slow to fast walking
-CYCLE_TOLERANCE = 0.25  # a pair's cycle further than this from the foot's median is not used
+CYCLE_TOLERANCE = 0.25  # a cycle further than this from the typical one is not the pair's own
+STRIDE_OUTLIER = 1.5  # a stride this many times the typical one spans a missed landmark
+MIN_REFERENCES = 3  # pairs (other than each foot's first) needed for a typical cycle
 MIN_STRIDE_M = 0.2  # shorter: a shuffle or one stance seen as two, not a swing
 MAX_STRIDE_M = 2.2  # longer than any walking stride
+
+
+@dataclass(frozen=True)
+class _Swing:
+    """One foot's candidate swing between two of its rests."""
+
+    side: int
+    before: Stance
+    after: Stance
+    cycle_s: float
+    first: bool  # the foot's first pair (its first rest may be a standing start)
+    p0: np.ndarray
+    p1: np.ndarray
+
+    @property
+    def stride_m(self) -> float:
+        return float(np.hypot(*(self.p1 - self.p0)[:2]))
 
 
 def swing_fill(
@@ -81,7 +108,8 @@ def swing_fill(
 ) -> np.ndarray:
     """Foot points (n, 2, 3) for the unseen frames of each foot's swings (module docstring),
     NaN elsewhere. ``t_s`` (n,) frame times, ``measured`` (n, 2, 3) the measured foot points
-    (left, right; NaN where not seen), ``stance_feet`` the filter's landmarks."""
+    (left, right; NaN where not seen), ``stance_feet`` the filter's landmarks (a stance
+    reported twice is made one first, :func:`gaitnet.vio.gait.merge_split_stances`)."""
     t_s = np.asarray(t_s, dtype=np.float64)
     measured = np.asarray(measured, dtype=np.float64)
     if measured.shape != (len(t_s), 2, 3):
@@ -89,40 +117,65 @@ def swing_fill(
             f"swing_fill: measured must be (n, 2, 3) for n = {len(t_s)} frames, "
             f"got {measured.shape}"
         )
+    seen = np.stack(
+        [steadily_seen(np.isfinite(measured[:, s]).all(axis=1)) for s in range(2)], axis=1
+    )
+    swings = _candidate_swings(t_s, measured, seen, stance_feet)
+    # the typical cycle and stride, from the pairs that are not a foot's first
+    reference = [w for w in swings if not w.first]
+    typical_cycle = typical_stride = np.nan
+    if len(reference) >= MIN_REFERENCES:
+        typical_cycle = float(np.median([w.cycle_s for w in reference]))
+        typical_stride = float(np.median([w.stride_m for w in reference]))
     out = np.full(measured.shape, np.nan)
+    for w in swings:
+        cycle = w.cycle_s
+        if np.isfinite(typical_cycle):
+            if w.stride_m > STRIDE_OUTLIER * typical_stride:
+                continue  # two strides: a rest between them was missed
+            if abs(cycle - typical_cycle) > CYCLE_TOLERANCE * typical_cycle:
+                if cycle > typical_cycle and not w.first:
+                    continue  # likewise
+                cycle = typical_cycle  # a standing start, or a rest first seen late
+        heel_off = max(w.after.t_first_s - heel_off_fraction * cycle, w.before.t_last_s)
+        window = (t_s > w.before.t_last_s) & (t_s < w.after.t_first_s) & ~seen[:, w.side]
+        if not window.any():
+            continue
+        span = max(w.after.t_first_s - heel_off, 1e-6)
+        tau = np.clip((t_s[window] - heel_off) / span, 0.0, 1.0)
+        rho = np.interp(tau, SWING_TAU, SWING_PROGRESS)
+        out[window, w.side] = w.p0 + rho[:, None] * (w.p1 - w.p0)
+        out[window, w.side, 2] += np.interp(tau, SWING_TAU, SWING_LIFT) * body_height_m
+    return out
+
+
+def _candidate_swings(
+    t_s: np.ndarray, measured: np.ndarray, seen: np.ndarray, stance_feet: Sequence[StanceFoot]
+) -> list[_Swing]:
+    """Consecutive rests of each foot that can be one stride (:data:`CYCLE_RANGE_S`,
+    :data:`MIN_STRIDE_M`, :data:`MAX_STRIDE_M`) and have measured points."""
+    rests = merge_split_stances(
+        [Stance(f.side, f.t_first_s, f.t_last_s, np.asarray(f.xy)) for f in stance_feet]
+    )
+    out = []
     for s, side in enumerate(SIDES):
-        seen = steadily_seen(~np.isnan(measured[:, s, 0]))
-        rests = sorted((f for f in stance_feet if f.side == side), key=lambda f: f.t_first_s)
-        pairs = list(zip(rests, rests[1:], strict=False))
-        cycles = np.array([b.t_first_s - a.t_first_s for a, b in pairs])
-        plausible = cycles[(cycles >= CYCLE_RANGE_S[0]) & (cycles <= CYCLE_RANGE_S[1])]
-        typical = float(np.median(plausible)) if plausible.size else np.nan
-        for (before, after), cycle in zip(pairs, cycles, strict=True):
+        own = sorted((r for r in rests if r.side == side), key=lambda r: r.t_first_s)
+        for i, (before, after) in enumerate(zip(own, own[1:], strict=False)):
+            cycle = after.t_first_s - before.t_first_s
             if not CYCLE_RANGE_S[0] <= cycle <= CYCLE_RANGE_S[1]:
                 continue
-            if abs(cycle - typical) > CYCLE_TOLERANCE * typical:
-                cycle = typical  # a landmark first seen late or early (a standing start)
-            p0 = _rest_point(t_s, measured[:, s], seen, before)
-            p1 = _rest_point(t_s, measured[:, s], seen, after)
+            p0 = _rest_point(t_s, measured[:, s], seen[:, s], before)
+            p1 = _rest_point(t_s, measured[:, s], seen[:, s], after)
             if p0 is None or p1 is None:
                 continue
-            if not MIN_STRIDE_M <= np.hypot(*(p1 - p0)[:2]) <= MAX_STRIDE_M:
-                continue
-            heel_off = max(after.t_first_s - heel_off_fraction * cycle, before.t_last_s)
-            window = (t_s > before.t_last_s) & (t_s < after.t_first_s) & ~seen
-            if not window.any():
-                continue
-            span = max(after.t_first_s - heel_off, 1e-6)
-            tau = np.clip((t_s[window] - heel_off) / span, 0.0, 1.0)
-            rho = np.interp(tau, SWING_TAU, SWING_PROGRESS)
-            lift = np.interp(tau, SWING_TAU, SWING_LIFT) * body_height_m
-            out[window, s] = p0 + rho[:, None] * (p1 - p0)
-            out[window, s, 2] += lift
+            swing = _Swing(s, before, after, cycle, i == 0, p0, p1)
+            if MIN_STRIDE_M <= swing.stride_m <= MAX_STRIDE_M:
+                out.append(swing)
     return out
 
 
 def _rest_point(
-    t_s: np.ndarray, points: np.ndarray, seen: np.ndarray, rest: StanceFoot
+    t_s: np.ndarray, points: np.ndarray, seen: np.ndarray, rest: Stance
 ) -> np.ndarray | None:
     """Median measured point (3,) over the frames of one stance, None when none is measured."""
     inside = seen & (t_s >= rest.t_first_s - 1e-6) & (t_s <= rest.t_last_s + 1e-6)

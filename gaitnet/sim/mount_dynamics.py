@@ -165,11 +165,13 @@ def spring_response(u: np.ndarray, gain: float, w: float, zeta: float, fs: float
     same numbers; a test compares them): importing ``scipy.signal`` pulls in ``scipy.stats``,
     0.6 s on the critical path of every ``gaitnet simulate`` run.
     """
+    u = np.asarray(u, np.float64)
+    if len(u) == 0:
+        return u.copy()
     k = 2.0 * fs
     a0 = k * k + 2 * zeta * w * k + w * w
     a1 = (2 * w * w - 2 * k * k) / a0
     a2 = (k * k - 2 * zeta * w * k + w * w) / a0
-    u = np.asarray(u, np.float64)
     drive = -gain / a0 * u  # numerator −γ (1 + z⁻¹)²
     drive[1:] += 2 * (-gain / a0) * u[:-1]
     drive[2:] += -gain / a0 * u[:-2]

@@ -48,6 +48,8 @@ def swing_profiles(walk: Walk, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray,
             progress.append(rho)
             lift.append((m[:, 2] - m[0, 2] - rho * d[2]) / walk.subject.height_m)
             fraction.append((ff1 - ho) / (ff1 - ff0))
+    if not progress:
+        return np.empty((0, len(tau))), np.empty((0, len(tau))), np.empty(0)
     return np.array(progress), np.array(lift), np.array(fraction)
 
 
