@@ -6,7 +6,8 @@ states of all frames, the biases and the stance-foot landmarks (sec. 3.5, the ch
 the position block with ``ε2`` at the end sheet; the foot term on ``U_k``; ``U_init`` with the
 conjugate; linearisation that accounts for the filter's update jumps) the cost is
 
-    ``J(x) = ½ Σ_terms ‖W_i e_i(x)‖²``   (terms: :mod:`gaitnet.vio.smoother_terms`),
+    ``J(x) = ½ Σ_terms ‖W_i e_i(x)‖²``   (terms: :mod:`gaitnet.vio.smoother_terms`,
+    :mod:`gaitnet.vio.smoother_measurements`),
 
 solved here by Gauss–Newton: the first iteration linearises around the filter's estimates
 (the thesis's single linear solve of (3.49)–(3.50), with the dynamics residual equal to the
@@ -34,15 +35,14 @@ from gaitnet.geometry import invert_T, rotmat_from_quat
 from gaitnet.vio.errors import FilterDivergedError
 from gaitnet.vio.foot_model import foot_measurement
 from gaitnet.vio.records import FilterRecord
+from gaitnet.vio.smoother_measurements import MeasurementTerm, group_terms
 from gaitnet.vio.smoother_terms import (
     DynamicsData,
-    MeasurementTerm,
     PriorData,
     SmootherVariables,
     TermBlock,
     dynamics_data,
     dynamics_term,
-    group_terms,
     prior_data,
     prior_term,
     stack_blocks,
