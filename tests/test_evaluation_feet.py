@@ -1,5 +1,5 @@
 """``foot_nmate_m`` (gaitnet.evaluation.feet): invariance to the yaw + translation alignment,
-known answers, the frames filled by prediction reported apart, and one-line errors."""
+known answers, the frames filled in reported apart, and one-line errors."""
 
 from __future__ import annotations
 

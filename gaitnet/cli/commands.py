@@ -279,7 +279,7 @@ def _cmd_infer(args: argparse.Namespace) -> int:
     )
     print(
         f"body height {result.subject_height_m:.2f} m; feet seen in {100 * seen[0]:.0f} % (left) "
-        f"/ {100 * seen[1]:.0f} % (right) of frames, the rest filled by prediction"
+        f"/ {100 * seen[1]:.0f} % (right) of frames, the rest filled in"
     )
     _print_gait_summary(gait)
     print(f"wrote {out} (joints.npz, feet.csv, gait_strides.csv, summary.json, ...)")

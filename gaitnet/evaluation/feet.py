@@ -11,7 +11,7 @@ the rotation about z and translation that best map the estimated trajectory onto
 over all matched frames (:func:`gaitnet.evaluation.metrics.align_yaw_translation`, the 4-DoF
 alignment of visual-inertial trajectories, whose yaw and position are unobservable), then
 ``‖mean_k |e_k|‖`` with ``e_k`` the aligned error vector of frame ``k`` and ``|·|`` taken per
-axis. ``foot_nmate_filled_m`` is the same over the frames filled by prediction only (with the
+axis. ``foot_nmate_filled_m`` is the same over the frames filled in only (with the
 alignment of all frames), ``foot_rmse_m`` the RMS of ``‖e_k‖`` for comparison with other
 tools.
 """

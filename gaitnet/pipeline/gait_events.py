@@ -2,7 +2,7 @@
 
 Input: the frame times and, per side, one point of the foot in the world frame (z up, floor
 z = 0; a point on the shoe such as the instep marker, or the ankle), gap-free (swing frames
-filled by prediction). Optionally the pelvis and hips (7-joint positions) for the toe off.
+filled in). Optionally the pelvis and hips (7-joint positions) for the toe off.
 
 The rule, per side:
 

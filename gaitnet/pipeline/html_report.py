@@ -74,7 +74,8 @@ LIMITS = (
     "Limits: events from a single foot point are tens of milliseconds off force-plate events "
     "(initial contact typically 20 ms early in steady walking, up to 140 ms early for the first "
     "and last step; toe off 10–20 ms late, measured on simulated walks); during swing the foot "
-    "is often not seen by the camera and its trajectory is filled by the motion predictor "
+    "is often not seen by the camera and its trajectory is filled in from where it rested "
+    "before and after, with a typical walking swing in between, and the motion predictor "
     "(dashed in the trajectory plots). The values are not a diagnosis; compare them with the "
     "patient's history and a clinical examination."
 )

@@ -21,7 +21,7 @@
    everywhere with ``bridge``) at the first pass's foot path bridged to where the foot is seen
    again (:mod:`gaitnet.pipeline.gap_bridge`).
 5. Forward kinematics give the joints, and the shoe markers (ankle plus the correction's marker
-   offset) the gap-free foot trajectories: measured frames and frames filled by prediction
+   offset) the gap-free foot trajectories: measured frames and frames filled in
    are flagged.
 """
 

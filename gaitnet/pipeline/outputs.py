@@ -172,7 +172,7 @@ def _write_report(
     (stage / "gait_strides.csv").write_text(stride_table_csv(rows))
     figures = [
         (
-            "Foot trajectories (solid: foot seen by the camera, dashed: filled by prediction)",
+            "Foot trajectories (solid: foot seen by the camera, dashed: filled in)",
             foot_trajectories_png(r.t_s, feet, measured),
         ),
         ("Walk seen from above", top_view_png(feet, (), contacts, r.vio.T_WfromC[:, :2, 3])),

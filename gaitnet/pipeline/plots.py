@@ -6,7 +6,7 @@ function returns the PNG file's bytes for :func:`write_png` or the HTML report. 
 green (the gait-lab habit, docs/ecosystem.md; the colours of ``gaitnet vio``'s plot).
 
 - :func:`foot_trajectories_png` — x, y, z of each foot over time (Figs. 5.10, 5.12–5.14):
-  frames where the foot was measured drawn solid, frames filled by prediction dashed and
+  frames where the foot was measured drawn solid, frames filled in dashed and
   lighter, the ground truth (when given) as a broad grey line underneath;
 - :func:`top_view_png` — the walk seen from above: both feet's paths, the filter's stance-foot
   landmarks and the detected foot contacts (Fig. 5.11's plane);
@@ -123,7 +123,7 @@ def foot_trajectories_png(
                 lw=1.2,
                 ls="--",
                 alpha=0.55,
-                label="filled by prediction",
+                label="filled in",
             )
             ax.set_ylabel(f"{axis} [m]")
             ax.grid(True, lw=0.3)
