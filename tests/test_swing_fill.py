@@ -81,6 +81,21 @@ def test_a_standing_start_takes_the_feet_median_cycle() -> None:
     np.testing.assert_allclose(out[k, 0, 0], expected, atol=1e-12)
 
 
+def test_a_long_standing_start_is_filled_only_with_a_typical_cycle() -> None:
+    # standing for 4 s (a 4.8 s first "cycle", beyond any stride's), then a foot flat every
+    # 1.2 s: the first swing is filled with the typical cycle, heel off at 4.8 − 0.9 = 3.9 s
+    steps = [(4.8 + 1.2 * i, 5.6 + 1.2 * i, 1.2 * (i + 1)) for i in range(4)]
+    t, measured, feet = _walk([(0.0, 3.5, 0.0), *steps], n=300)
+    out = swing_fill(t, measured, feet, H)
+    np.testing.assert_allclose(out[int(round(3.8 * FPS)), 0], [0.0, 0.1, 0.01], atol=1e-12)
+    k = int(round(4.2 * FPS))  # τ = (4.2 − 3.9) / 0.9
+    expected = np.interp(0.3 / 0.9, SWING_TAU, SWING_PROGRESS) * 1.2
+    np.testing.assert_allclose(out[k, 0, 0], expected, atol=1e-12)
+    # with one step after it there is no typical cycle, and the long first pair is not filled
+    t, measured, feet = _walk([(0.0, 3.5, 0.0), steps[0]], n=200)
+    assert np.isnan(swing_fill(t, measured, feet, H)).all()
+
+
 def test_two_pairs_keep_their_own_cycles() -> None:
     # a standing start and one stride: too few pairs for a typical cycle, so each pair keeps
     # its own and heel off is clamped to the last rest frame (1.4 s, then 3.3 s)

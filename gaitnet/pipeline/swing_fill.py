@@ -31,7 +31,9 @@ walking foot has a stereotyped shape, which this module lays between the two res
 
 Only frames where the foot is not steadily seen (:func:`gaitnet.pipeline.gap_bridge.steadily_seen`)
 between the two landmarks are filled; a pair of landmarks is skipped when it cannot be one
-stride of one foot (:data:`CYCLE_RANGE_S`, :data:`MIN_STRIDE_M`, :data:`MAX_STRIDE_M`), when
+stride of one foot (:data:`CYCLE_RANGE_S` — but a foot's first pair, which may start with
+standing of any length, only needs the typical cycle —, :data:`MIN_STRIDE_M`,
+:data:`MAX_STRIDE_M`), when
 it spans a missed landmark (a stride over :data:`STRIDE_OUTLIER` times the typical one, or a
 cycle longer than the typical one by more than the tolerance, but for a foot's first pair), or
 when either stance has no measured point. :func:`gaitnet.pipeline.infer.reconstruct` runs the pose
@@ -130,7 +132,10 @@ def swing_fill(
     out = np.full(measured.shape, np.nan)
     for w in swings:
         cycle = w.cycle_s
-        if np.isfinite(typical_cycle):
+        if not np.isfinite(typical_cycle):
+            if cycle > CYCLE_RANGE_S[1]:
+                continue  # a long standing start, and no typical cycle to stand in for it
+        else:
             if w.stride_m > STRIDE_OUTLIER * typical_stride:
                 continue  # two strides: a rest between them was missed
             if abs(cycle - typical_cycle) > CYCLE_TOLERANCE * typical_cycle:
@@ -152,8 +157,9 @@ def swing_fill(
 def _candidate_swings(
     t_s: np.ndarray, measured: np.ndarray, seen: np.ndarray, stance_feet: Sequence[StanceFoot]
 ) -> list[_Swing]:
-    """Consecutive rests of each foot that can be one stride (:data:`CYCLE_RANGE_S`,
-    :data:`MIN_STRIDE_M`, :data:`MAX_STRIDE_M`) and have measured points."""
+    """Consecutive rests of each foot that can be one stride (:data:`CYCLE_RANGE_S`, but any
+    length for a foot's first pair; :data:`MIN_STRIDE_M`, :data:`MAX_STRIDE_M`) and have
+    measured points."""
     rests = merge_split_stances(
         [Stance(f.side, f.t_first_s, f.t_last_s, np.asarray(f.xy)) for f in stance_feet]
     )
@@ -162,7 +168,9 @@ def _candidate_swings(
         own = sorted((r for r in rests if r.side == side), key=lambda r: r.t_first_s)
         for i, (before, after) in enumerate(zip(own, own[1:], strict=False)):
             cycle = after.t_first_s - before.t_first_s
-            if not CYCLE_RANGE_S[0] <= cycle <= CYCLE_RANGE_S[1]:
+            # a foot's first rest may be a standing start of any length (its cycle is then
+            # replaced by the typical one, below)
+            if cycle < CYCLE_RANGE_S[0] or (cycle > CYCLE_RANGE_S[1] and i > 0):
                 continue
             p0 = _rest_point(t_s, measured[:, s], seen[:, s], before)
             p1 = _rest_point(t_s, measured[:, s], seen[:, s], after)
