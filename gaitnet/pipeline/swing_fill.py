@@ -26,18 +26,18 @@ walking foot has a stereotyped shape, which this module lays between the two res
   height ``H``): the mean path of the instep marker from heel off to the next foot flat over
   the simulator's walks at 0.8–1.6 m/s (458 swings of 30 subjects; derived by
   ``data/derive_swing_template.py`` with :func:`gaitnet.sim.swing_profile.derive_swing_template`,
-  and checked against a fresh derivation by a test); its timing is checked against real
-  walking in docs/pipeline.md.
+  and checked against a fresh derivation by a test); on real walks it fits less well than on
+  simulated ones (docs/pipeline.md, *Limits*).
 
 Only frames where the foot is not steadily seen (:func:`gaitnet.pipeline.gap_bridge.steadily_seen`)
-between the two landmarks are filled; a pair of landmarks is skipped when it cannot be one
-stride of one foot (:data:`CYCLE_RANGE_S` — but a foot's first pair, which may start with
-standing of any length, only needs the typical cycle —, :data:`MIN_STRIDE_M`,
-:data:`MAX_STRIDE_M`), when
-it spans a missed landmark (a stride over :data:`STRIDE_OUTLIER` times the typical one, or a
-cycle longer than the typical one by more than the tolerance, but for a foot's first pair), or
-when either stance has no measured point. :func:`gaitnet.pipeline.infer.reconstruct` runs the pose
-correction a second time with the filled points as that foot's measurements.
+between the two landmarks are filled. A pair of landmarks is skipped when it cannot be one
+stride of one foot (:data:`CYCLE_RANGE_S`, except a foot's first pair, which may start with
+standing of any length and then only needs the typical cycle; :data:`MIN_STRIDE_M`,
+:data:`MAX_STRIDE_M`), when it spans a missed landmark (a stride over :data:`STRIDE_OUTLIER`
+times the typical one, or a cycle longer than the typical one by more than the tolerance, but
+for a foot's first pair), or when either stance has no measured point.
+:func:`gaitnet.pipeline.infer.reconstruct` runs the pose correction a second time with the
+filled points as that foot's measurements.
 """
 
 from __future__ import annotations
