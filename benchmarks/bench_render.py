@@ -32,7 +32,8 @@ import numpy as np  # noqa: E402
 
 from gaitnet.geometry import make_T, so3_exp  # noqa: E402
 from gaitnet.io.types import AprilTagBoard  # noqa: E402
-from gaitnet.sim.floor import make_clutter, make_floor  # noqa: E402
+from gaitnet.sim.clutter import make_clutter  # noqa: E402
+from gaitnet.sim.floor import make_floor  # noqa: E402
 from gaitnet.sim.render import Lighting, render_frame  # noqa: E402
 from gaitnet.sim.scene import Appearance, BodyState, LegSegment, ShoeState  # noqa: E402
 from gaitnet.sim.sensor_model import SensorNoiseConfig, apply_sensor, auto_exposure  # noqa: E402

@@ -40,7 +40,8 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from gaitnet.geometry import make_T, so3_exp  # noqa: E402
-from gaitnet.sim.floor import ClutterBox, make_floor  # noqa: E402
+from gaitnet.sim.clutter import ClutterBox  # noqa: E402
+from gaitnet.sim.floor import make_floor  # noqa: E402
 from gaitnet.sim.render import render_frame  # noqa: E402
 from gaitnet.sim.render_types import RenderResult  # noqa: E402
 from gaitnet.sim.scene import Appearance, BodyState  # noqa: E402

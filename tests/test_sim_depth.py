@@ -14,8 +14,9 @@ import pytest
 from gaitnet.config import load_config
 from gaitnet.errors import ConfigError
 from gaitnet.geometry import make_T, so3_exp
+from gaitnet.sim.clutter import ClutterBox
 from gaitnet.sim.config import SimConfig
-from gaitnet.sim.floor import ClutterBox, make_floor
+from gaitnet.sim.floor import make_floor
 from gaitnet.sim.floor_relief import FloorRelief, FloorReliefConfig, sample_floor_relief
 from gaitnet.sim.render import render_frame
 from gaitnet.sim.render_types import RenderResult

@@ -8,9 +8,9 @@ import pytest
 
 from gaitnet.geometry import make_T, so3_exp
 from gaitnet.io.types import AprilTagBoard, tag_corners_in_board
+from gaitnet.sim.clutter import ClutterBox
 from gaitnet.sim.floor import (
     FLOOR_FAMILIES,
-    ClutterBox,
     make_floor,
 )
 from gaitnet.sim.render import Lighting, render_frame

@@ -24,7 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from gaitnet.sim.floor import Clutter, ClutterBox, ClutterCylinder, FloorTexture
+from gaitnet.sim.clutter import Clutter, ClutterBox, ClutterCylinder
+from gaitnet.sim.floor import FloorTexture
 from gaitnet.sim.floor_relief import FloorRelief
 from gaitnet.sim.render_draw import Frame, draw
 from gaitnet.sim.render_draw import antialias as antialias_edges

@@ -25,8 +25,9 @@ import numpy as np
 from gaitnet.errors import InputError
 from gaitnet.geometry import make_T, so3_exp
 from gaitnet.io.types import AprilTagBoard
+from gaitnet.sim.clutter import Clutter, make_clutter
 from gaitnet.sim.config import SimConfig
-from gaitnet.sim.floor import FLOOR_FAMILIES, Clutter, FloorTexture, make_clutter, make_floor
+from gaitnet.sim.floor import FLOOR_FAMILIES, FloorTexture, make_floor
 from gaitnet.sim.floor_relief import FloorRelief, flat_relief, sample_floor_relief
 from gaitnet.sim.gait import Walk, generate_walk
 from gaitnet.sim.mount_dynamics import MountMotion, build_mount_motion, compose_kinematics
