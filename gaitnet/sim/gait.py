@@ -27,7 +27,7 @@ derived from the legs, not the other way round. The leg that carries the body ha
 knee flexion — ``knee_extended_deg`` (3°) at heel strike and in mid-stance, a
 ``knee_loading_deg`` (17°) loading-response peak at 13 % of the cycle — and the pelvis height
 is the smooth curve closest to the heights at which the legs have those angles
-(:func:`gait_pelvis.stance_knee`); the swing knee, the trailing knee in pre-swing and every
+(:func:`gait_knee.stance_knee`); the swing knee, the trailing knee in pre-swing and every
 knee angle then follow by IK. Standing, both knees are at ``knee_extended_deg``.
 ``REACH_FRACTION`` (knee ≥ about 1°) only guards the IK. For a 1.75 m subject at 1.3 m/s this
 gives a knee of about 5–7° at heel strike, 18° in loading response, 5° in mid-stance, 38° at

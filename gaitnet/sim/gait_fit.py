@@ -23,15 +23,14 @@ from gaitnet.sim.gait_feet import (
     adapt_heel_off,
     build_foot_trajectory,
 )
+from gaitnet.sim.gait_knee import StanceKnee, stance_knee
 from gaitnet.sim.gait_legs import R_PfromSMPL
 from gaitnet.sim.gait_pelvis import (
     PelvisGrid,
     PelvisParams,
-    StanceKnee,
     design_heights,
     fit_height,
     reach_bounds,
-    stance_knee,
 )
 from gaitnet.sim.gait_plan import StepPlan
 from gaitnet.sim.subject import Subject

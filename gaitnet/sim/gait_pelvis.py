@@ -18,20 +18,18 @@ back to 0 when the walk ends; ``Φ_L``: the phase of a left heel strike):
   rotation ``−E·A_rot·cos π(Φ − Φ_L)`` (left hip forward at left HS), obliquity
   ``E·A_obl·cos π(Φ − Φ_L − 0.3)`` (swing side drops in loading response), tilt
   ``E·A_tilt·cos 2π(Φ − 0.9)``;
-- height: set by the legs, not prescribed. :func:`stance_knee` designs the knee flexion of
-  each leg while it carries the body (cycle fractions after its heel strike): extending from
-  ``terminal_swing_rad`` to ``extended_rad`` in the last ``_SWING_LEAD`` before the heel
-  strike, a loading-response bump to ``loading_rad`` at ``_LOADING_PEAK``, extended again in
-  mid-stance; from ``_CARRY_FULL`` to ``_CARRY_END`` the leg stops counting (its knee may flex
-  as the body falls toward the other foot, whose heel strike ends the vault). Standing: both
-  legs at ``extended_rad``. :func:`design_heights` turns a knee angle into the pelvis height
-  at which that leg's hip–ankle distance equals the two-link length. :func:`fit_height` fits
-  a discrete smoothing spline (jerk penalty) to the weighted design heights — where both legs
-  count the higher design yields to the lower one — subject to staying ``_FIT_GAP_M`` below
-  both legs' reach bounds (a banded QP, solved by ADMM); :func:`build_pelvis` soft-minimises
-  it (``−k log Σ exp(−z_i/k)``, below every argument) with the reach bounds. So the pelvis
-  vaults over the nearly straight stance leg and is lowest in double support; its vertical
-  excursion follows from the step and leg lengths (about 3–5 cm per step at 1.2–1.4 m/s).
+- height: set by the legs, not prescribed. :func:`gaitnet.sim.gait_knee.stance_knee` designs
+  the knee flexion of each leg while it carries the body (extended at heel strike and in mid-
+  stance, a loading-response bump, bending as the leg stops counting in terminal stance;
+  both legs extended while standing). :func:`design_heights` turns a knee angle into the
+  pelvis height at which that leg's hip–ankle distance equals the two-link length.
+  :func:`fit_height` fits a discrete smoothing spline (jerk penalty) to the weighted design
+  heights — where both legs count the higher design yields to the lower one — subject to
+  staying ``_FIT_GAP_M`` below both legs' reach bounds (a banded QP, solved by ADMM);
+  :func:`build_pelvis` soft-minimises it (``−k log Σ exp(−z_i/k)``, below every argument)
+  with the reach bounds. So the pelvis vaults over the nearly straight stance leg and is
+  lowest in double support; its vertical excursion follows from the step and leg lengths
+  (about 3–5 cm per step at 1.2–1.4 m/s).
 """
 
 from __future__ import annotations
@@ -51,7 +49,6 @@ __all__ = [
     "PelvisGrid",
     "PelvisParams",
     "PelvisTrajectory",
-    "StanceKnee",
     "build_pelvis",
     "design_heights",
     "euler_zyx_matrix",
@@ -59,7 +56,6 @@ __all__ = [
     "motion_end_time",
     "pelvis_grid",
     "reach_bounds",
-    "stance_knee",
 ]
 
 GRID_DT_S = 1e-3
@@ -67,17 +63,6 @@ _SOFTMIN_K_M = 3e-5
 _REACH_MARGIN_M = 2e-5
 _FIT_GAP_M = 1.5e-4  # the fitted height stays this far below the reach bounds
 _OVER_ANKLE = 0.5  # the pelvis passes over the stance ankle this many steps after its HS
-# Knee design, in cycle fractions φ (0 = heel strike of the leg, 1 = its next heel strike):
-_LOADING_PEAK = 0.13  # loading-response knee peak
-_LOADING_END = 0.36  # ... the stance knee is extended again
-_SWING_LEAD = 0.10  # the landing leg starts to count this long before its heel strike
-_CARRY_FULL = 0.25  # the stance leg counts fully until here,
-_CARRY_END = 0.37  # ... and no more from here
-_HS_EMPHASIS = 100.0  # extra weight around the heel strike (knee nearly straight),
-_HS_EMPHASIS_WIDTH = 0.03  # ... over about this (standard deviation),
-_MS_EMPHASIS = 10.0  # ... and around mid-stance
-_MS_PHASE = 0.27
-_MS_EMPHASIS_WIDTH = 0.04
 _YIELD_M = 5e-4  # a leg whose design is this much higher than the other's counts e times less
 _ADMM_RHO = 1000.0  # the constrained fit (z ≤ bound): ADMM penalty and iterations (what is
 _ADMM_ITERATIONS = 100  # ... left above the bound, a few µm, goes by the smooth correction)
@@ -248,85 +233,6 @@ def reach_bounds(
     return ankles[..., 2] + np.sqrt(rest) - off[..., 2] - _REACH_MARGIN_M
 
 
-@dataclass(frozen=True)
-class StanceKnee:
-    """Designed knee flexion [rad] of a leg while it carries the body (module docstring).
-
-    ``extended_rad`` at heel strike, in mid-stance and while standing; ``loading_rad`` at the
-    loading-response peak after a steady-length step (shorter steps flex less);
-    ``terminal_swing_rad`` when the landing leg starts to count, ``_SWING_LEAD`` of the cycle
-    before its heel strike; ``trailing_rad`` when the stance leg stops counting.
-    """
-
-    extended_rad: float
-    loading_rad: float
-    terminal_swing_rad: float
-    trailing_rad: float
-
-
-def _loading_bump(u: np.ndarray) -> np.ndarray:
-    """``(u/u_p)^a ((1 − u)/(1 − u_p))^c`` on [0, 1] (0 outside): peak 1 at ``u_p``, C³ at 1."""
-    a = 2.0
-    u_p = _LOADING_PEAK / _LOADING_END
-    c = a * (1.0 - u_p) / u_p
-    u = np.clip(u, 0.0, 1.0)
-    return (u / u_p) ** a * ((1.0 - u) / (1.0 - u_p)) ** c
-
-
-def stance_knee(plan: StepPlan, t: np.ndarray, knee: StanceKnee) -> tuple[np.ndarray, np.ndarray]:
-    """Designed knee flexion [rad] and weight ≥ 0 of each leg (n, 2) on the grid ``t``.
-
-    With the cycle phase ``φ`` of a stance (0 at its heel strike ``h_k``, 1 two steps later):
-    the weight rises from 0 at ``φ = −_SWING_LEAD`` to 1 half-way to the heel strike (terminal
-    swing: the knee extends from ``terminal_swing_rad`` to ``extended_rad``), is raised
-    around the heel strike and mid-stance (``_HS_EMPHASIS``, ``_MS_EMPHASIS``: the knee is
-    nearly straight there), and falls to 0 from ``_CARRY_FULL`` to ``_CARRY_END`` (the knee
-    design bends toward ``trailing_rad``); the loading bump peaks at ``_LOADING_PEAK``. Step
-    length scales the bump, the terminal-swing flexion and the emphasis (the closing step
-    lands beside the other foot). The standing stances at the start weigh 1 until they stop
-    counting like any stance, the final ones until the end. The knee is NaN where the weight
-    is 0.
-    """
-    h, arc = plan.step_hs, plan.step_arc
-    n_steps = len(h) - 1
-    first = int(plan.step_side[0])
-    theta = np.full((len(t), 2), np.nan)
-    weight = np.zeros((len(t), 2))
-    for side in (0, 1):
-        # (heel-strike step index, loading amplitude) per stance; index −1: virtual h_{−1}
-        rows = [(-1 if side == first else 0, 0.0)]
-        for k in range(1, n_steps + 1):
-            if int(plan.step_side[k - 1]) == side:
-                scale = float(np.clip((arc[k] - arc[k - 1]) / plan.steady_step_m, 0.0, 1.0))
-                rows.append((k, scale))
-        for i, (k, scale) in enumerate(rows):
-            h_k = h[k] if k >= 0 else h[0] - (h[1] - h[0])
-            step = h[k + 1] - h_k if k + 1 <= n_steps else h[k] - h[k - 1]
-            phi = (t - h_k) / (2.0 * step)
-            lead = _SWING_LEAD * max(scale, 0.2)  # a short step lands more gently
-            w = np.ones_like(t)
-            if i > 0:  # landing: rises in terminal swing, emphasised around the heel strike
-                w *= smoothstep7((phi + lead) / (0.5 * lead))
-                w *= 1.0 + scale * _HS_EMPHASIS * np.exp(-0.5 * (phi / _HS_EMPHASIS_WIDTH) ** 2)
-                w *= 1.0 + scale * _MS_EMPHASIS * np.exp(
-                    -0.5 * ((phi - _MS_PHASE) / _MS_EMPHASIS_WIDTH) ** 2
-                )
-            late = smoothstep7((phi - _CARRY_FULL) / (_CARRY_END - _CARRY_FULL))
-            final = i + 1 == len(rows)
-            if not final:  # stops counting in terminal stance
-                w *= 1.0 - late
-            m = w > 0.0
-            swing = np.clip(-phi[m] / lead, 0.0, 1.0) if i > 0 else 0.0
-            flex = scale * (knee.terminal_swing_rad - knee.extended_rad)
-            th = knee.extended_rad + flex * (1.0 - smoothstep7(1.0 - swing))
-            if not final:
-                th = th + (knee.trailing_rad - knee.extended_rad) * late[m]
-            bump = scale * _loading_bump(phi[m] / _LOADING_END)
-            theta[m, side] = th + (knee.loading_rad - knee.extended_rad) * bump
-            weight[m, side] = w[m]
-    return theta, weight
-
-
 def _leg_reach(thigh_m: np.ndarray, shank_m: np.ndarray, knee_rad: np.ndarray) -> np.ndarray:
     """Hip–ankle distance of a two-link leg (per side, last axis) with knee flexion ``knee_rad``."""
     return np.sqrt(thigh_m**2 + shank_m**2 + 2.0 * thigh_m * shank_m * np.cos(knee_rad))
@@ -357,8 +263,9 @@ def fit_height(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Smooth pelvis height on the grid that follows the legs' designs and stays reachable.
 
-    ``targets``/``weights`` (n, 2) from :func:`design_heights`/:func:`stance_knee`; where both
-    legs count, the weight of the higher design is divided by ``1 + w_other·exp(Δ/_YIELD_M)``.
+    ``targets``/``weights`` (n, 2) from :func:`design_heights` and
+    :func:`gaitnet.sim.gait_knee.stance_knee`; where both legs count, the weight of the higher
+    design is divided by ``1 + w_other·exp(Δ/_YIELD_M)``.
     The desired height minimises ``Σ_i w_i (z − target_i)² + (s/Δt)⁶ Σ (Δ³z)²`` (a discrete
     smoothing spline penalising jerk, ``s = p.height_fit_s``); with ``constrained`` the same
     objective is minimised subject to ``z ≤ upper − _FIT_GAP_M`` (a banded QP, by ADMM) and the
