@@ -36,10 +36,10 @@ from gaitnet.motion.amass import load_amass_clip
 from gaitnet.motion.skeleton import builtin_skeleton, forward_kinematics, from_rest_joints
 from gaitnet.pipeline.config import PipelineParams
 from gaitnet.pipeline.swing_fill import swing_fill
+from gaitnet.vio.gait import SIDES
 from gaitnet.vio.result import StanceFoot
 
 FPS = 30.0
-SIDES = ("left", "right")
 ANKLES, FEET = (5, 6), (7, 8)  # joint order of gaitnet.motion.skeleton.SMPL_JOINT_INDICES
 
 

@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gaitnet.pipeline.gap_bridge import steadily_seen
-from gaitnet.vio.gait import Stance, merge_split_stances
+from gaitnet.vio.gait import SIDES, Stance, merge_split_stances
 from gaitnet.vio.result import StanceFoot
 
 __all__ = [
@@ -64,7 +64,6 @@ __all__ = [
     "swing_fill",
 ]
 
-SIDES = ("left", "right")
 SWING_TAU = np.linspace(0.0, 1.0, 21)
 # fmt: off
 SWING_PROGRESS = np.array([
