@@ -17,6 +17,7 @@ from torch.nn import functional as nnf
 from gaitnet.errors import ConfigError, InputError
 from gaitnet.segmentation.fcn import (
     ARCHS,
+    OUTPUT_STRIDES,
     PADDINGS,
     FCN8s,
     SegmenterNet,
@@ -128,10 +129,10 @@ def test_same_padding_feature_map_sizes_at_640x480() -> None:
     assert n_params(FCN8s(3, padding="same")) == published_count(3)
 
 
-def _linear_stream(padding: str, path: str) -> FCN8s:
+def _linear_stream(padding: str, path: str, output_stride: int = 8) -> FCN8s:
     """A stream made linear (average instead of max pooling, positive constant weights, zero
     biases: the ReLUs pass everything) whose output is one score path alone."""
-    stream = FCN8s(1, width=SMALL, padding=padding).eval()
+    stream = FCN8s(1, width=SMALL, padding=padding, output_stride=output_stride).eval()
     for i, layer in enumerate(stream.features):
         if isinstance(layer, nn.MaxPool2d):
             stream.features[i] = nn.AvgPool2d(2, 2, ceil_mode=True)
@@ -140,34 +141,78 @@ def _linear_stream(padding: str, path: str) -> FCN8s:
             if isinstance(m, nn.Conv2d):
                 m.weight.fill_(1.0 / m.weight[0].numel())
                 m.bias.zero_()
-        for name in ("score_fr", "score_pool4", "score_pool3"):
-            layer = getattr(stream, name)
-            layer.weight.fill_(1.0 if name == path else 0.0)
-            layer.bias.zero_()
+        for name, layer in stream.named_children():
+            if name.startswith("score_"):
+                layer.weight.fill_(1.0 if name == path else 0.0)
+                layer.bias.zero_()
     return stream
 
 
+#: The score paths of each output stride.
+SCORE_PATHS = {
+    8: ["score_fr", "score_pool4", "score_pool3"],
+    4: ["score_fr", "score_pool4", "score_pool3", "score_pool2"],
+    2: ["score_fr", "score_pool4", "score_pool3", "score_pool2", "score_pool1"],
+}
+
+
 @pytest.mark.parametrize("padding", PADDINGS)
-@pytest.mark.parametrize("path", ["score_fr", "score_pool4", "score_pool3"])
-def test_score_paths_are_aligned_with_the_input(padding: str, path: str) -> None:
+@pytest.mark.parametrize(
+    ("output_stride", "path"), [(s, p) for s in OUTPUT_STRIDES for p in SCORE_PATHS[s]]
+)
+def test_score_paths_are_aligned_with_the_input(padding: str, output_stride: int, path: str):
     """Each score path of a linearised stream answers a 2 × 2 impulse at the centre of a
     256 × 256 input with a response centred on it: an offset one cell off moves it by 0.8–10
     pixels (checked by hand), the sampling grid's phase by < 0.25."""
     x = torch.zeros(1, 3, 256, 256)
     x[..., 127:129, 127:129] = 1.0
     with torch.no_grad():
-        y = _linear_stream(padding, path)(x)[0, 0].double()
-    assert y.shape == (256, 256) and float(y.min()) >= 0.0
+        y = _linear_stream(padding, path, output_stride)(x)[0, 0].double()
+    assert y.shape == (256, 256) and float(y.min()) >= 0.0 and float(y.max()) > 0.0
     idx = torch.arange(256, dtype=torch.float64)
     centre = (float((y.sum(1) * idx).sum() / y.sum()), float((y.sum(0) * idx).sum() / y.sum()))
     assert centre == pytest.approx((127.5, 127.5), abs=0.25)
 
 
+def test_finer_output_strides_add_skips_from_pool2_and_pool1() -> None:
+    """Stride 4 adds score_pool2 and a learned ×2 (upscore_pool3) and ends with a fixed
+    bilinear ×4; stride 2 adds pool1 too and ends with ×2; the count formula matches."""
+    for stride, final, kernel in ((8, "upscore8", 16), (4, "upscore4", 8), (2, "upscore_out", 4)):
+        stream = FCN8s(3, width=SMALL, output_stride=stride)
+        scores = {n for n, _ in stream.named_children() if n.startswith("score_")}
+        assert scores == set(SCORE_PATHS[stride])
+        out = getattr(stream, final)
+        assert out.stride == (stride, stride) and not out.weight.requires_grad
+        assert torch.equal(out.weight[1, 1], bilinear_kernel(kernel))
+        learned = [n for n, m in stream.named_children()
+                   if isinstance(m, nn.ConvTranspose2d) and m.weight.requires_grad]  # fmt: skip
+        assert len(learned) == len(SCORE_PATHS[stride]) - 1  # one ×2 per fused skip
+        for name in learned:
+            assert torch.equal(getattr(stream, name).weight[2, 2], bilinear_kernel(4)), name
+        n = sum(p.numel() for p in stream.parameters())
+        assert n == fcn8s_parameter_count(3, SMALL, output_stride=stride)
+    c1, c2 = round(64 * SMALL), round(128 * SMALL)
+    by_hand = (c2 + 1) * 3 + 3 * 3 * 4 * 4 + 3 * 3 * (8 * 8 - 16 * 16)  # score_pool2 etc.
+    assert (
+        fcn8s_parameter_count(3, SMALL, output_stride=4) - fcn8s_parameter_count(3, SMALL)
+        == by_hand
+    )
+    assert fcn8s_parameter_count(3, SMALL, output_stride=2) - fcn8s_parameter_count(
+        3, SMALL, output_stride=4
+    ) == (c1 + 1) * 3 + 3 * 3 * 4 * 4 + 3 * 3 * (4 * 4 - 8 * 8)
+    with pytest.raises(ConfigError, match="output_stride"):
+        FCN8s(3, width=SMALL, output_stride=16)
+    with pytest.raises(ConfigError, match="output_stride"):
+        SegmenterNet("rgb", width=SMALL, output_stride=True)
+
+
 @pytest.mark.parametrize("arch", ARCHS)
 @pytest.mark.parametrize("scale", [1.0, 0.5])
 @pytest.mark.parametrize("padding", PADDINGS)
-def test_output_is_exactly_the_input_size(arch: str, scale: float, padding: str) -> None:
-    net = randomise(SegmenterNet(arch, width=SMALL, input_scale=scale, padding=padding))
+@pytest.mark.parametrize("stride", OUTPUT_STRIDES)
+def test_output_is_exactly_the_input_size(arch: str, scale: float, padding: str, stride: int):
+    net = SegmenterNet(arch, width=SMALL, input_scale=scale, padding=padding, output_stride=stride)
+    net = randomise(net)
     for h, w in [(1, 1), (37, 53), (31, 66), (97, 130)]:
         x = torch.rand(2, input_channels(arch), h, w)
         with torch.no_grad():
@@ -331,9 +376,19 @@ def test_checkpoint_keeps_the_padding() -> None:
     x = torch.rand(1, 3, 40, 56)
     with torch.no_grad():
         assert torch.equal(back(x), net(x))
-    old = {k: v for k, v in net.config().items() if k != "padding"}
+    old = {k: v for k, v in net.config().items() if k not in ("padding", "output_stride")}
     legacy = segmenter_from_checkpoint({"model": ckpt["model"], "config": {"model": old}})
     assert legacy.padding == "published" and legacy.hha.features[0].padding == (100, 100)
+    assert legacy.output_stride == 8
+
+
+def test_checkpoint_keeps_the_output_stride() -> None:
+    net = randomise(SegmenterNet("fusion", width=SMALL, padding="same", output_stride=2), 5)
+    back = segmenter_from_checkpoint({"model": net.state_dict(), "config": {"model": net.config()}})
+    assert back.output_stride == 2 and back.rgb.score_pool1 is not None
+    x = torch.rand(1, 6, 40, 56)
+    with torch.no_grad():
+        assert torch.equal(back(x), net(x))
 
 
 class _NotWeights:

@@ -34,9 +34,9 @@ SCRIPT = ROOT / "export" / "to_onnx.py"
 H, W = 40, 56
 
 
-def tiny(arch: str, input_scale: float = 1.0, seed: int = 0) -> SegmenterNet:
+def tiny(arch: str, input_scale: float = 1.0, seed: int = 0, **geometry) -> SegmenterNet:
     """A width-1/16 net with small random weights everywhere (score layers start at zero)."""
-    net = SegmenterNet(arch, width=1 / 16, input_scale=input_scale)
+    net = SegmenterNet(arch, width=1 / 16, input_scale=input_scale, **geometry)
     gen = torch.Generator().manual_seed(seed)
     with torch.no_grad():
         for p in net.parameters():
@@ -77,11 +77,14 @@ def test_parity_dynamic_batch_and_metadata(exported) -> None:
 
 
 def test_single_stream_export(tmp_path: Path) -> None:
-    net = tiny("hha", seed=2)
+    """An HHA stream with the finest output stride and ``same`` padding."""
+    net = tiny("hha", seed=2, padding="same", output_stride=2)
     report = export_segmenter_onnx(net, tmp_path / "hha.onnx", height=33, width=47)
     assert report.max_abs_diff <= 1e-4
     seg = OnnxSegmenter(tmp_path / "hha.onnx")
     assert (seg.arch, seg.channels, seg.height, seg.width) == ("hha", 3, 33, 47)
+    assert seg.metadata["gaitnet.output_stride"] == "2"
+    assert seg.metadata["gaitnet.padding"] == "same"
 
 
 class _Skewed:

@@ -232,6 +232,42 @@ def test_model_keys_build_that_model() -> None:
         build_model(_cfg("model.vgg16_weights=/nonexistent.pth").model)
 
 
+def test_output_stride_key_builds_finer_nets() -> None:
+    net = build_model(_cfg("model.width=0.0625", "model.output_stride=4").model)
+    assert net.output_stride == 4 and net.rgb.score_pool2.out_channels == 3
+    assert build_model(_cfg("model.width=0.0625").model).output_stride == 8
+    with pytest.raises(ConfigError, match="model.output_stride"):
+        _cfg("model.output_stride=16")
+
+
+def test_init_checkpoint_starts_from_a_trained_net(straight: Path, tmp_path) -> None:
+    """``model.init_checkpoint`` copies the trained layers (the same net: the same logits), a
+    finer ``output_stride`` keeps its new score layers at zero; mismatches are named."""
+    best = straight / "best.pt"
+    ckpt = load_checkpoint(best)
+    model = ckpt["config"]["model"]
+    keys = [f"model.{k}={v}" for k, v in model.items() if k in ("arch", "width", "input_scale")]
+    trained = build_model(_cfg(*keys).model)
+    trained.load_state_dict(ckpt["model"])
+    same = build_model(_cfg(*keys, f"model.init_checkpoint={best}").model).eval()
+    x = torch.rand(1, 6, 48, 64)
+    with torch.no_grad():
+        assert torch.equal(same(x), trained.eval()(x))
+    finer = build_model(_cfg(*keys, "model.output_stride=2", f"model.init_checkpoint={best}").model)
+    state = finer.state_dict()
+    for key, value in ckpt["model"].items():
+        if key in state:
+            assert torch.equal(state[key], value), key
+    assert not finer.rgb.score_pool1.weight.any() and not finer.hha.score_pool2.weight.any()
+    assert torch.count_nonzero(finer.rgb.score_pool3.weight) > 0  # copied, trained
+    with pytest.raises(ConfigError, match=r"model.init_checkpoint .*model.width is 0.0625"):
+        build_model(_cfg("model.width=0.125", f"model.init_checkpoint={best}").model)
+    with pytest.raises(ConfigError, match="exclude each other"):
+        _cfg(f"model.init_checkpoint={best}", "model.vgg16_weights=/x.pth")
+    with pytest.raises(GaitnetError, match="does not exist"):
+        build_model(_cfg(*keys, f"model.init_checkpoint={tmp_path / 'none.pt'}").model)
+
+
 def test_loss_keys_give_that_focal_loss() -> None:
     torch.manual_seed(0)
     logits, target = torch.randn(2, 3, 5, 4), torch.randint(0, 3, (2, 5, 4))

@@ -62,6 +62,7 @@ from gaitnet.training.segmenter import (
     CLASS_NAMES,
     ModelConfig,
     SegmenterTrainingConfig,
+    architecture_only,
     build_dataset,
     build_loss,
     build_model,
@@ -346,7 +347,8 @@ def train(
     val_loader = DataLoader(
         val_ds, cfg.train.eval_batch_size, sampler=val_sampler, num_workers=cfg.data.num_workers
     )
-    model = build_model(cfg.model).to(device)
+    # A resumed run's weights come from its checkpoint, not from its initialisation keys.
+    model = build_model(cfg.model if ckpt is None else architecture_only(cfg.model)).to(device)
     model_without_ddp = model
     loss_fn = build_loss(cfg.loss).to(device)
     optimizer = build_optimizer(model.parameters(), cfg.optim)
@@ -550,7 +552,7 @@ def eval_only(cfg: SegmenterTrainingConfig, args: argparse.Namespace, device: to
         source = Path(args.checkpoint)
         ckpt = load_checkpoint(source)
         cfg = _with_checkpoint_model(cfg, ckpt, source)
-        model = build_model(replace(cfg.model, vgg16_weights=None)).to(device)
+        model = build_model(architecture_only(cfg.model)).to(device)
         load_state(model, ckpt["model"], source, "model")
         predict = torch_predict(model, cfg.model.arch, device)
         extra.update(checkpoint=str(source), epoch=int(ckpt["epoch"]))

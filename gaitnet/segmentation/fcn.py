@@ -25,6 +25,13 @@ padding 1 keeps the centre, a 2×2 pool of stride 2 maps ``i`` to ``2i + ½``, a
 of stride ``s`` and size ``2s`` maps ``j`` to ``(j − s + ½) / s``): the same algebra gives 5,
 9, 31 for the published padding. Same parameters, about a third of the computation.
 
+``output_stride`` 8 is FCN-8s. 4 and 2 (beyond the paper) take its pattern one and two steps
+further: a ×2 upsampling of the fused 1/8 map summed with a score layer on ``pool2``, then
+(for 2) on ``pool1``, before a final ×4 or ×2 bilinear upsampling, so a boundary is blurred
+over 4 or 2 input pixels instead of 8. The same algebra gives the offsets: ``same`` 1 into
+each upsampled map and output crops 2 (stride 4) and 1 (stride 2); ``published`` 17 (pool2)
+and 33 (pool1) into the score maps and output crops 33 and 34.
+
 :class:`SegmenterNet` wraps one stream (``arch`` "rgb" or "hha") or two (``"fusion"``: the
 RGB and HHA streams' class score maps are summed, the thesis's late fusion, trained jointly).
 It takes channels in [0, 1] (RGB/255, HHA/255, or both concatenated), normalises them itself
@@ -40,6 +47,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -66,6 +74,8 @@ __all__ = [
     "HHA_STD",
     "RGB_MEAN",
     "RGB_STD",
+    "OUTPUT_STRIDES",
+    "PADDINGS",
     "FCN8s",
     "SegmenterNet",
     "bilinear_kernel",
@@ -84,11 +94,42 @@ FC_CHANNELS = 4096
 CROP_POOL4, CROP_POOL3, CROP_OUT = 5, 9, 31
 #: ``padding`` choices (module docstring).
 PADDINGS = ("published", "same")
-#: Per padding: (conv1_1 padding, fc6 padding, (offset into upscore2, into score_pool4),
-#: (offset into upscore_pool4, into score_pool3), output crop).
-_GEOMETRY: dict[str, tuple[int, int, tuple[int, int], tuple[int, int], int]] = {
-    "published": (100, 0, (0, CROP_POOL4), (0, CROP_POOL3), CROP_OUT),
-    "same": (1, 3, (1, 0), (1, 0), 4),
+#: ``output_stride`` choices: 8 is the published FCN-8s; 4 and 2 add skips from pool2 and pool1.
+OUTPUT_STRIDES = (8, 4, 2)
+#: The pools whose score maps are fused, coarsest first, down to each output stride.
+_SKIPS: dict[int, tuple[str, ...]] = {
+    8: ("pool4", "pool3"),
+    4: ("pool4", "pool3", "pool2"),
+    2: ("pool4", "pool3", "pool2", "pool1"),
+}
+#: The final upsampling layer's name per output stride (``upscore8`` in the reference net).
+_OUT_LAYER = {8: "upscore8", 4: "upscore4", 2: "upscore_out"}
+
+
+@dataclass(frozen=True)
+class _Geometry:
+    """Offsets of one padding (module docstring): ``fuse[pool]`` = (offset into the upsampled
+    map, offset into ``score_<pool>``); ``crop[stride]`` = the output crop."""
+
+    conv1_pad: int
+    fc6_pad: int
+    fuse: dict[str, tuple[int, int]]
+    crop: dict[int, int]
+
+
+_GEOMETRY: dict[str, _Geometry] = {
+    "published": _Geometry(
+        100,
+        0,
+        {"pool4": (0, CROP_POOL4), "pool3": (0, CROP_POOL3), "pool2": (0, 17), "pool1": (0, 33)},
+        {8: CROP_OUT, 4: 33, 2: 34},
+    ),
+    "same": _Geometry(
+        1,
+        3,
+        {"pool4": (1, 0), "pool3": (1, 0), "pool2": (1, 0), "pool1": (1, 0)},
+        {8: 4, 4: 2, 2: 1},
+    ),
 }
 
 
@@ -118,8 +159,14 @@ def _bilinear_init(layer: nn.ConvTranspose2d) -> None:
             layer.weight[c, c] = kernel
 
 
-def fcn8s_parameter_count(num_classes: int, width: float = 1.0, in_channels: int = 3) -> int:
-    """Parameters of one FCN-8s stream, counted from the layer list (weights + biases)."""
+#: VGG16 output channels at each pool (before width scaling).
+_POOL_CHANNELS = {"pool1": 64, "pool2": 128, "pool3": 256, "pool4": 512}
+
+
+def fcn8s_parameter_count(
+    num_classes: int, width: float = 1.0, in_channels: int = 3, output_stride: int = 8
+) -> int:
+    """Parameters of one FCN stream, counted from the layer list (weights + biases)."""
     total, c_prev = 0, in_channels
     for v in VGG16_CFG:
         if v == "M":
@@ -128,12 +175,14 @@ def fcn8s_parameter_count(num_classes: int, width: float = 1.0, in_channels: int
         total += c_prev * c * 9 + c
         c_prev = c
     fc = scaled_channels(FC_CHANNELS, width)
-    c3, c4 = scaled_channels(256, width), scaled_channels(512, width)
     n = num_classes
     total += c_prev * fc * 49 + fc  # fc6
     total += fc * fc + fc  # fc7
-    total += (fc + 1) * n + (c4 + 1) * n + (c3 + 1) * n  # score_fr, score_pool4, score_pool3
-    total += n * n * (4 * 4 + 4 * 4 + 16 * 16)  # upscore2, upscore_pool4, upscore8 (no bias)
+    total += (fc + 1) * n  # score_fr
+    for pool in _SKIPS[output_stride]:  # score_pool4, score_pool3, ...
+        total += (scaled_channels(_POOL_CHANNELS[pool], width) + 1) * n
+    # upscore2, upscore_pool4, ... (×2 each, no bias), then the final ×output_stride
+    total += n * n * (4 * 4 * len(_SKIPS[output_stride]) + (2 * output_stride) ** 2)
     return total
 
 
@@ -142,6 +191,11 @@ class FCN8s(nn.Module):
 
     ``features`` is torchvision's VGG16 feature stack (``conv1_1`` … ``pool5``, channel counts
     scaled by ``width``); spatial scales below are relative to the padded input.
+    ``output_stride`` 8 is the published FCN-8s; 4 and 2 continue its pattern one and two
+    steps further, as the FCN authors went from FCN-32s to 16s to 8s: the fused 1/8 map is
+    upsampled ×2 (``upscore_pool3``, learned, bilinear start) and summed with a zero-started
+    score layer on ``pool2`` (``score_pool2``), and for 2 once more with ``pool1``; the final
+    fixed bilinear upsampling is then ×4 (``upscore4``) or ×2 (``upscore_out``).
     """
 
     def __init__(
@@ -151,68 +205,81 @@ class FCN8s(nn.Module):
         in_channels: int = 3,
         dropout: float = 0.5,
         padding: str = "published",
+        output_stride: int = 8,
     ) -> None:
         super().__init__()
         self.padding = _check_padding(padding)
-        pad1, pad6, self._fuse4, self._fuse3, self._crop = _GEOMETRY[padding]
+        self.output_stride = _check_output_stride(output_stride)
+        geometry = _GEOMETRY[padding]
         cfg = [v if v == "M" else scaled_channels(int(v), width) for v in VGG16_CFG]
         self.features = tv_vgg.make_layers(cfg)
         first = self.features[0]
         assert isinstance(first, nn.Conv2d)
         if in_channels != 3:
             self.features[0] = first = nn.Conv2d(in_channels, first.out_channels, 3)
-        first.padding = (pad1, pad1)  # conv1_1: 100 in the published net
+        first.padding = (geometry.conv1_pad, geometry.conv1_pad)  # 100 in the published net
         pools = [i for i, m in enumerate(self.features) if isinstance(m, nn.MaxPool2d)]
         for i in pools:
             self.features[i].ceil_mode = True
-        self._pool3, self._pool4 = pools[2], pools[3]
-        c3, c4, c5 = (scaled_channels(c, width) for c in (256, 512, 512))
+        self._skips = _SKIPS[output_stride]
+        self._pool_at = {pools[int(name[-1]) - 1]: name for name in self._skips}
+        self._fuse_offsets = [geometry.fuse[name] for name in self._skips]
+        self._crop = geometry.crop[output_stride]
+        c5 = scaled_channels(512, width)
         fc = scaled_channels(FC_CHANNELS, width)
-        self.fc6 = nn.Conv2d(c5, fc, 7, padding=pad6)  # 1/32
+        self.fc6 = nn.Conv2d(c5, fc, 7, padding=geometry.fc6_pad)  # 1/32
         self.relu6 = nn.ReLU(inplace=True)
         self.drop6 = nn.Dropout(dropout)
         self.fc7 = nn.Conv2d(fc, fc, 1)
         self.relu7 = nn.ReLU(inplace=True)
         self.drop7 = nn.Dropout(dropout)
         self.score_fr = nn.Conv2d(fc, num_classes, 1)
-        self.score_pool4 = nn.Conv2d(c4, num_classes, 1)
-        self.score_pool3 = nn.Conv2d(c3, num_classes, 1)
-        self.upscore2 = nn.ConvTranspose2d(num_classes, num_classes, 4, stride=2, bias=False)
-        self.upscore_pool4 = nn.ConvTranspose2d(num_classes, num_classes, 4, stride=2, bias=False)
-        self.upscore8 = nn.ConvTranspose2d(num_classes, num_classes, 16, stride=8, bias=False)
+        n = num_classes
+        # score_pool4, score_pool3 [, score_pool2 [, score_pool1]]
+        for name in self._skips:
+            c = scaled_channels(_POOL_CHANNELS[name], width)
+            setattr(self, f"score_{name}", nn.Conv2d(c, n, 1))
+        # upscore2 (after score_fr), upscore_pool4 [, upscore_pool3 [, upscore_pool2]]: ×2 each
+        self._up_names = ["upscore2", *(f"upscore_{name}" for name in self._skips[:-1])]
+        for name in self._up_names:
+            setattr(self, name, nn.ConvTranspose2d(n, n, 4, stride=2, bias=False))
+        self._out_name = _OUT_LAYER[output_stride]
+        s = output_stride
+        setattr(self, self._out_name, nn.ConvTranspose2d(n, n, 2 * s, stride=s, bias=False))
         self.num_classes = num_classes
         self.width = width
         self.reset_parameters()
 
     def reset_parameters(self) -> None:
         """VGG convs and fc6/fc7 as torchvision initialises VGG convs (He, fan-out); score
-        layers zero; transposed convs bilinear, ``upscore8`` fixed."""
+        layers zero; transposed convs bilinear, the final one (``upscore8``) fixed."""
         for m in [*self.features, self.fc6, self.fc7]:
             if isinstance(m, nn.Conv2d):
                 nn.init.kaiming_normal_(m.weight, mode="fan_out", nonlinearity="relu")
                 nn.init.zeros_(m.bias)
-        for m in (self.score_fr, self.score_pool4, self.score_pool3):
-            nn.init.zeros_(m.weight)
-            nn.init.zeros_(m.bias)
-        for m in (self.upscore2, self.upscore_pool4, self.upscore8):
-            _bilinear_init(m)
-        self.upscore8.weight.requires_grad_(False)
+        for name in ("score_fr", *(f"score_{p}" for p in self._skips)):
+            layer = getattr(self, name)
+            nn.init.zeros_(layer.weight)
+            nn.init.zeros_(layer.bias)
+        for name in (*self._up_names, self._out_name):
+            _bilinear_init(getattr(self, name))
+        getattr(self, self._out_name).weight.requires_grad_(False)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """(B, 3, H, W) normalised → (B, num_classes, H, W) class scores."""
         h = x
-        pool3 = pool4 = x
+        pooled: dict[str, torch.Tensor] = {}
         for i, layer in enumerate(self.features):
             h = layer(h)
-            if i == self._pool3:
-                pool3 = h  # 1/8
-            elif i == self._pool4:
-                pool4 = h  # 1/16
+            if i in self._pool_at:
+                pooled[self._pool_at[i]] = h  # pool4 1/16, pool3 1/8, pool2 1/4, pool1 1/2
         h = self.drop6(self.relu6(self.fc6(h)))  # 1/32
         h = self.drop7(self.relu7(self.fc7(h)))
-        fused4 = _fuse(self.upscore2(self.score_fr(h)), self.score_pool4(pool4), self._fuse4)
-        fused3 = _fuse(self.upscore_pool4(fused4), self.score_pool3(pool3), self._fuse3)  # 1/8
-        out = self.upscore8(fused3)  # 1/1
+        score = self.score_fr(h)
+        for up, name, offsets in zip(self._up_names, self._skips, self._fuse_offsets, strict=True):
+            skip = getattr(self, f"score_{name}")(pooled[name])
+            score = _fuse(getattr(self, up)(score), skip, offsets)  # 1/16, 1/8, ...
+        out = getattr(self, self._out_name)(score)  # 1/1
         c = self._crop
         return out[:, :, c : c + x.shape[2], c : c + x.shape[3]]
 
@@ -224,6 +291,14 @@ def _fuse(up: torch.Tensor, skip: torch.Tensor, offsets: tuple[int, int]) -> tor
     h = min(up.shape[2] - a, skip.shape[2] - b)
     w = min(up.shape[3] - a, skip.shape[3] - b)
     return up[:, :, a : a + h, a : a + w] + skip[:, :, b : b + h, b : b + w]
+
+
+def _check_output_stride(stride: Any) -> int:
+    if isinstance(stride, bool) or stride not in OUTPUT_STRIDES:
+        raise ConfigError(
+            f"segmenter output_stride must be one of {list(OUTPUT_STRIDES)}, got {stride!r}"
+        )
+    return int(stride)
 
 
 def _check_padding(padding: Any) -> str:
@@ -248,18 +323,21 @@ class SegmenterNet(nn.Module):
         num_classes: int = 3,
         input_scale: float = 1.0,
         padding: str = "published",
+        output_stride: int = 8,
     ) -> None:
         super().__init__()
         self.arch = check_arch(arch)
         self.padding = _check_padding(padding)
+        self.output_stride = _check_output_stride(output_stride)
         self.width = _check_real("segmenter width", width, 0.0, 1.0, open_lo=True)
         self.input_scale = _check_real("segmenter input_scale", input_scale, 0.0, 1.0, True)
         if isinstance(num_classes, bool) or not isinstance(num_classes, int) or num_classes < 2:
             raise ConfigError(f"segmenter num_classes must be an integer ≥ 2, got {num_classes!r}")
         self.num_classes = num_classes
         streams = ("rgb", "fusion"), ("hha", "fusion")
-        self.rgb = FCN8s(num_classes, width, padding=padding) if arch in streams[0] else None
-        self.hha = FCN8s(num_classes, width, padding=padding) if arch in streams[1] else None
+        geometry = {"padding": padding, "output_stride": output_stride}
+        self.rgb = FCN8s(num_classes, width, **geometry) if arch in streams[0] else None
+        self.hha = FCN8s(num_classes, width, **geometry) if arch in streams[1] else None
         mean = (RGB_MEAN if self.rgb else ()) + (HHA_MEAN if self.hha else ())
         std = (RGB_STD if self.rgb else ()) + (HHA_STD if self.hha else ())
         # Constants of the architecture, not learned state: kept out of state dicts.
@@ -278,6 +356,7 @@ class SegmenterNet(nn.Module):
             "num_classes": self.num_classes,
             "input_scale": self.input_scale,
             "padding": self.padding,
+            "output_stride": self.output_stride,
         }
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -342,6 +421,7 @@ def build_segmenter(
     input_scale: float = 1.0,
     vgg16_weights: str | Path | None = None,
     padding: str = "published",
+    output_stride: int = 8,
 ) -> SegmenterNet:
     """A :class:`SegmenterNet`, optionally started from local ImageNet VGG16 weights
     (:func:`gaitnet.segmentation.vgg16_weights.read_vgg16_weights`, read before the net is
@@ -353,7 +433,12 @@ def build_segmenter(
         )
     state = None if vgg16_weights is None else read_vgg16_weights(vgg16_weights)
     net = SegmenterNet(
-        arch, width=width, num_classes=num_classes, input_scale=input_scale, padding=padding
+        arch,
+        width=width,
+        num_classes=num_classes,
+        input_scale=input_scale,
+        padding=padding,
+        output_stride=output_stride,
     )
     if state is not None:
         load_vgg16_weights(net, state)
@@ -363,8 +448,8 @@ def build_segmenter(
 def segmenter_from_checkpoint(ckpt: Mapping[str, Any], source: str = "checkpoint") -> SegmenterNet:
     """The trained :class:`SegmenterNet` of a checkpoint dict written by
     ``train/segmenter.py``: ``ckpt["config"]["model"]`` gives ``arch``, ``width``,
-    ``num_classes``, ``input_scale`` and ``padding`` ("published" when absent: checkpoints from
-    before the option); ``ckpt["model"]`` the state dict. ``source`` (the file)
+    ``num_classes``, ``input_scale``, ``padding`` ("published" when absent: checkpoints from
+    before the option) and ``output_stride`` (8 when absent); ``ckpt["model"]`` the state dict. ``source`` (the file)
     names the checkpoint in errors. Returned in eval mode on the CPU."""
     if not isinstance(ckpt, Mapping):
         raise InputError(f"{source}: not a checkpoint dict")
@@ -382,6 +467,7 @@ def segmenter_from_checkpoint(ckpt: Mapping[str, Any], source: str = "checkpoint
             num_classes=model_cfg["num_classes"],
             input_scale=model_cfg["input_scale"],
             padding=model_cfg.get("padding", "published"),
+            output_stride=model_cfg.get("output_stride", 8),
         )
     except ConfigError as exc:
         raise InputError(f"{source}: config.model: {exc}") from exc

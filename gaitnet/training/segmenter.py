@@ -26,7 +26,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -34,14 +34,22 @@ import numpy as np
 import torch
 
 from gaitnet.checks import check_int_range, check_range
-from gaitnet.errors import InputError
+from gaitnet.errors import ConfigError, InputError
 from gaitnet.evaluation.segmentation import confusion_matrix, segmentation_scores
 from gaitnet.segmentation.augment import AugmentParams
 from gaitnet.segmentation.dataset import SegmentationFolder
-from gaitnet.segmentation.fcn import ARCHS, PADDINGS, SegmenterNet, build_segmenter
+from gaitnet.segmentation.fcn import (
+    ARCHS,
+    OUTPUT_STRIDES,
+    PADDINGS,
+    SegmenterNet,
+    build_segmenter,
+    segmenter_from_checkpoint,
+)
 from gaitnet.segmentation.focal_loss import FocalLoss
 from gaitnet.segmentation.folder_files import read_split
 from gaitnet.segmentation.hha import hha_stride
+from gaitnet.training.checkpoint import load_checkpoint
 from gaitnet.training.predictor import DEVICE_PATTERN
 
 __all__ = [
@@ -53,6 +61,7 @@ __all__ = [
     "OptimConfig",
     "SegmenterTrainingConfig",
     "TrainConfig",
+    "architecture_only",
     "build_dataset",
     "build_loss",
     "build_model",
@@ -62,6 +71,7 @@ __all__ = [
     "resolve_set",
     "scores_of",
     "set_name",
+    "start_from_checkpoint",
 ]
 
 logger = logging.getLogger(__name__)
@@ -98,12 +108,19 @@ class ModelConfig:
     num_classes: int = 3
     vgg16_weights: Path | None = None
     padding: Literal["published", "same"] = "published"
+    output_stride: int = 8
+    init_checkpoint: Path | None = None
 
     def __post_init__(self) -> None:
         if self.arch not in ARCHS:
             raise ValueError(f"model.arch must be one of {ARCHS}, got {self.arch!r}")
         if self.padding not in PADDINGS:
             raise ValueError(f"model.padding must be one of {PADDINGS}, got {self.padding!r}")
+        if isinstance(self.output_stride, bool) or self.output_stride not in OUTPUT_STRIDES:
+            raise ValueError(
+                f"model.output_stride must be one of {list(OUTPUT_STRIDES)}, got "
+                f"{self.output_stride!r}"
+            )
         check_range("model.width", self.width, 1e-3, 1.0)
         check_range("model.input_scale", self.input_scale, 0.05, 1.0)
         check_int_range("model.num_classes", self.num_classes, 2, 255)
@@ -111,6 +128,11 @@ class ModelConfig:
             raise ValueError(
                 "model.vgg16_weights needs model.width 1 (ImageNet weights fit the published "
                 f"width only), got width {self.width:g}"
+            )
+        if self.vgg16_weights is not None and self.init_checkpoint is not None:
+            raise ValueError(
+                "model.vgg16_weights and model.init_checkpoint exclude each other (both "
+                "initialise the net)"
             )
 
 
@@ -289,15 +311,47 @@ def build_dataset(
 
 
 def build_model(cfg: ModelConfig) -> SegmenterNet:
-    """The net of ``cfg`` (VGG16 ImageNet initialisation from ``vgg16_weights`` if given)."""
-    return build_segmenter(
+    """The net of ``cfg``: VGG16 ImageNet initialisation from ``vgg16_weights``, or the
+    matching layers of a trained segmenter from ``init_checkpoint``, if given."""
+    net = build_segmenter(
         cfg.arch,
         width=cfg.width,
         num_classes=cfg.num_classes,
         input_scale=cfg.input_scale,
         vgg16_weights=cfg.vgg16_weights,
         padding=cfg.padding,
+        output_stride=cfg.output_stride,
     )
+    if cfg.init_checkpoint is not None:
+        new = start_from_checkpoint(net, cfg.init_checkpoint)
+        logger.info("started from %s; new layers: %s", cfg.init_checkpoint, ", ".join(new))
+    return net
+
+
+def architecture_only(cfg: ModelConfig) -> ModelConfig:
+    """``cfg`` without its initialisation keys: the net a checkpoint's weights then fill."""
+    return replace(cfg, vgg16_weights=None, init_checkpoint=None)
+
+
+def start_from_checkpoint(net: SegmenterNet, path: Path) -> list[str]:
+    """Copy every tensor of a trained segmenter checkpoint whose name and shape match into
+    ``net``; the rest keep their initialisation (their names are returned). This is the FCN
+    authors' staged training (FCN-16s started from FCN-32s, FCN-8s from FCN-16s): a net with a
+    finer ``output_stride`` starts from a coarser one, its new score layers at zero. The
+    checkpoint's arch, width, padding and classes must be ``net``'s."""
+    ckpt = load_checkpoint(path)
+    source = segmenter_from_checkpoint(ckpt, str(path))
+    theirs, ours = source.config(), net.config()
+    for key in ("arch", "width", "padding", "num_classes"):
+        if theirs[key] != ours[key]:
+            raise ConfigError(
+                f"model.init_checkpoint {path}: its model.{key} is {theirs[key]!r}, this "
+                f"config's is {ours[key]!r}"
+            )
+    own = net.state_dict()
+    copied = {k: v for k, v in source.state_dict().items() if k in own and v.shape == own[k].shape}
+    net.load_state_dict({**own, **copied})
+    return [k for k in own if k not in copied]
 
 
 def build_loss(cfg: LossConfig) -> FocalLoss:
