@@ -30,8 +30,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from gaitnet.segmentation.fcn import ARCHS, PADDINGS, SegmenterNet, input_channels
+from gaitnet.segmentation.channels import ARCHS, input_channels
+from gaitnet.segmentation.fcn import PADDINGS
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter, export_segmenter_onnx
+from gaitnet.segmentation.segmenter_net import SegmenterNet
 
 #: arch:width:input_scale[:padding] (padding "published" when left out) — fusion at every width
 #: (full frames and half-size inside the net), the published width 1 once, the single streams at

@@ -14,7 +14,7 @@ layout, the training config and, when the run folder has one, the evaluation (ev
 
 ``segmenter``: the FCN-8s foot/leg segmenter (``train/segmenter.py``). The net comes from the
 checkpoint (``config.model``: arch, width, num_classes, input_scale;
-gaitnet.segmentation.fcn.segmenter_from_checkpoint) and is exported for frames of
+gaitnet.segmentation.segmenter_net.segmenter_from_checkpoint) and is exported for frames of
 ``--height`` × ``--width`` with a dynamic batch; the export is refused unless onnxruntime
 reproduces PyTorch's logits within ``--atol`` (default 1e-4) on random inputs
 (gaitnet.segmentation.onnx_runtime.export_segmenter_onnx). The arch, width, input scale, class
@@ -40,9 +40,15 @@ from gaitnet.training.scripts import ScriptParser
 
 
 def read_eval(checkpoint: Path) -> Any:
-    """The run folder's ``eval.json`` (without its config) for the sidecar, or None."""
-    eval_file = checkpoint.parent / "eval.json"
-    if not eval_file.is_file():
+    """The checkpoint's scores for the sidecar (without their config), or None: the
+    ``eval_<name>.json`` that ``train/segmenter.py --eval-only`` writes next to it, else the run
+    folder's ``eval.json`` (written at the end of training, for ``best.pt``)."""
+    candidates = (
+        checkpoint.with_name(f"eval_{checkpoint.stem}.json"),
+        checkpoint.parent / "eval.json",
+    )
+    eval_file = next((c for c in candidates if c.is_file()), None)
+    if eval_file is None:
         return None
     try:
         full = json.loads(eval_file.read_text(encoding="utf-8"))
@@ -123,7 +129,6 @@ def run_predictor(args: argparse.Namespace) -> int:
 
 def run_segmenter(args: argparse.Namespace) -> int:
     """Export a segmenter checkpoint (``train/segmenter.py``) and write its sidecar."""
-    from gaitnet.segmentation.fcn import segmenter_from_checkpoint
     from gaitnet.segmentation.onnx_runtime import (
         INPUT_NAME,
         OUTPUT_NAME,
@@ -131,6 +136,7 @@ def run_segmenter(args: argparse.Namespace) -> int:
         export_segmenter_onnx,
         segmenter_metadata,
     )
+    from gaitnet.segmentation.segmenter_net import segmenter_from_checkpoint
     from gaitnet.training.checkpoint import load_checkpoint
 
     checkpoint = Path(args.checkpoint)

@@ -19,8 +19,8 @@ from gaitnet.motion.skeleton import builtin_skeleton, forward_kinematics
 from gaitnet.pipeline.config import InferConfig, PipelineParams
 from gaitnet.pipeline.foot_points import floor_in_camera
 from gaitnet.pipeline.infer import _contact, _standing_frames
-from gaitnet.segmentation.fcn import build_segmenter
 from gaitnet.segmentation.onnx_runtime import export_segmenter_onnx
+from gaitnet.segmentation.segmenter_net import build_segmenter
 from gaitnet.vio.result import StanceFoot
 
 

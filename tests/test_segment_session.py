@@ -16,7 +16,6 @@ import torch
 from gaitnet.cli import main
 from gaitnet.io import open_session
 from gaitnet.io.trajectory import read_tum
-from gaitnet.segmentation.fcn import build_segmenter
 from gaitnet.segmentation.hha import HhaParams, find_floor, hha_encode
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter, export_segmenter_onnx
 from gaitnet.segmentation.postprocess import foot_keypoints, kept_feet_labels
@@ -25,6 +24,7 @@ from gaitnet.segmentation.segment_session import (
     accelerometer_gravity_C,
     network_input,
 )
+from gaitnet.segmentation.segmenter_net import build_segmenter
 
 
 @pytest.fixture(scope="module")

@@ -15,16 +15,17 @@ from torch import nn
 from torch.nn import functional as nnf
 
 from gaitnet.errors import ConfigError, InputError
+from gaitnet.segmentation.channels import ARCHS, input_channels
 from gaitnet.segmentation.fcn import (
-    ARCHS,
     OUTPUT_STRIDES,
     PADDINGS,
     FCN8s,
-    SegmenterNet,
     bilinear_kernel,
-    build_segmenter,
     fcn8s_parameter_count,
-    input_channels,
+)
+from gaitnet.segmentation.segmenter_net import (
+    SegmenterNet,
+    build_segmenter,
     model_input,
     segmenter_from_checkpoint,
 )
@@ -389,6 +390,30 @@ def test_checkpoint_keeps_the_output_stride() -> None:
     x = torch.rand(1, 6, 40, 56)
     with torch.no_grad():
         assert torch.equal(back(x), net(x))
+
+
+def test_logit_bias_is_added_last_and_kept_by_checkpoints() -> None:
+    net = randomise(SegmenterNet("fusion", width=SMALL, input_scale=0.5), 6).eval()
+    biased = SegmenterNet("fusion", width=SMALL, input_scale=0.5, logit_bias=[0.0, -1.5, 0.5])
+    biased.load_state_dict(net.state_dict())  # the bias is configuration, not state
+    x = torch.rand(2, 6, 40, 56)
+    with torch.no_grad():
+        shift = biased.eval()(x) - net(x)
+    torch.testing.assert_close(
+        shift, torch.tensor([0.0, -1.5, 0.5]).view(1, 3, 1, 1).expand_as(shift)
+    )
+    assert net.config()["logit_bias"] == [0.0, 0.0, 0.0]
+    back = segmenter_from_checkpoint(
+        {"model": biased.state_dict(), "config": {"model": biased.config()}}
+    )
+    assert back.logit_bias == (0.0, -1.5, 0.5)
+    old = {k: v for k, v in net.config().items() if k != "logit_bias"}  # before the option
+    assert segmenter_from_checkpoint(
+        {"model": net.state_dict(), "config": {"model": old}}
+    ).logit_bias == (0.0, 0.0, 0.0)
+    for bad in ([0.0, 1.0], [0.0, float("nan"), 0.0], "0 0 0", [0, True, 0]):
+        with pytest.raises(ConfigError, match="logit_bias must be null or a list of 3"):
+            SegmenterNet("rgb", width=SMALL, logit_bias=bad)
 
 
 class _NotWeights:

@@ -20,13 +20,13 @@ from onnx import TensorProto, helper
 import gaitnet.io.onnx_export as onnx_export
 from gaitnet.errors import InputError
 from gaitnet.io.onnx_session import OnnxInputError
-from gaitnet.segmentation.fcn import SegmenterNet
 from gaitnet.segmentation.onnx_runtime import (
     OnnxParityError,
     OnnxSegmenter,
     argmax_classes,
     export_segmenter_onnx,
 )
+from gaitnet.segmentation.segmenter_net import SegmenterNet
 from gaitnet.training.checkpoint import save_checkpoint
 
 ROOT = Path(__file__).parents[1]
@@ -77,14 +77,23 @@ def test_parity_dynamic_batch_and_metadata(exported) -> None:
 
 
 def test_single_stream_export(tmp_path: Path) -> None:
-    """An HHA stream with the finest output stride and ``same`` padding."""
-    net = tiny("hha", seed=2, padding="same", output_stride=2)
+    """An HHA stream with the finest output stride, ``same`` padding and a logit bias: the
+    graph adds the bias (parity with PyTorch) and the metadata record it."""
+    net = tiny("hha", seed=2, padding="same", output_stride=2, logit_bias=[0.0, -0.5, 0.25])
     report = export_segmenter_onnx(net, tmp_path / "hha.onnx", height=33, width=47)
     assert report.max_abs_diff <= 1e-4
     seg = OnnxSegmenter(tmp_path / "hha.onnx")
     assert (seg.arch, seg.channels, seg.height, seg.width) == ("hha", 3, 33, 47)
     assert seg.metadata["gaitnet.output_stride"] == "2"
     assert seg.metadata["gaitnet.padding"] == "same"
+    assert json.loads(seg.metadata["gaitnet.logit_bias"]) == [0.0, -0.5, 0.25]
+    x = np.random.default_rng(3).random((1, 3, 33, 47), dtype=np.float32)
+    unbiased = tiny("hha", seed=2, padding="same", output_stride=2)
+    with torch.no_grad():
+        plain = unbiased(torch.from_numpy(x)).numpy()
+    shift = seg(x) - plain
+    np.testing.assert_allclose(shift, np.broadcast_to([[[[0.0]], [[-0.5]], [[0.25]]]], shift.shape),
+                               atol=1e-4)  # fmt: skip
 
 
 class _Skewed:

@@ -41,14 +41,15 @@ ROOT = Path(__file__).parents[1]
 SCRIPT = ROOT / "train" / "segmenter.py"
 
 
-def _load_script():
-    spec = importlib.util.spec_from_file_location("train_segmenter", SCRIPT)
+def _load_script(path: Path = SCRIPT):
+    spec = importlib.util.spec_from_file_location(path.stem, path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
 
 
 script = _load_script()
+calibrate = _load_script(ROOT / "train" / "calibrate_segmenter.py")
 
 
 @pytest.fixture(scope="module")
@@ -238,6 +239,40 @@ def test_output_stride_key_builds_finer_nets() -> None:
     assert build_model(_cfg("model.width=0.0625").model).output_stride == 8
     with pytest.raises(ConfigError, match="model.output_stride"):
         _cfg("model.output_stride=16")
+
+
+def test_logit_bias_key_reaches_the_net() -> None:
+    net = build_model(_cfg("model.width=0.0625", "model.logit_bias=[0, -0.5, 0.25]").model)
+    assert net.logit_bias == (0.0, -0.5, 0.25)
+    assert build_model(_cfg("model.width=0.0625").model).logit_bias == (0.0, 0.0, 0.0)
+    with pytest.raises(ConfigError, match="model.logit_bias must be null or a list of 3"):
+        _cfg("model.logit_bias=[0, 1]")
+
+
+def test_calibration_writes_the_bias_that_maximises_val_miou(tmp_path, straight: Path) -> None:
+    """train/calibrate_segmenter.py: the written checkpoint is best.pt with the fitted bias; its
+    validation mIoU (scored independently by --eval-only) is the one the fit reports, and no
+    lower than before."""
+    out = tmp_path / "calibrated.pt"
+    config, best = str(straight / "config.yaml"), straight / "best.pt"
+    argv = ["--config", config, "--checkpoint", str(best), "--out", str(out)]
+    assert calibrate.main(calibrate.get_args_parser().parse_args(argv)) == 0
+    ckpt, source = load_checkpoint(out), load_checkpoint(best)
+    info = ckpt["calibration"]
+    assert ckpt["config"]["model"]["logit_bias"] == info["logit_bias"]
+    assert info["miou_after"] >= info["miou_before"] and info["frames"] == 2
+    for key, value in source["model"].items():
+        assert torch.equal(ckpt["model"][key], value)
+    scores = tmp_path / "scores.json"
+    val = str(Path(ckpt["config"]["data"]["val"]))
+    assert _run("--config", config, "--eval-only", "--checkpoint", str(out), "--out",
+                str(scores), f"eval.sets=[{val}]") == 0  # fmt: skip
+    assert json.loads(scores.read_text())["sets"]["val"]["miou"] == pytest.approx(
+        info["miou_after"], abs=1e-9
+    )
+    with pytest.raises(InputError, match="would overwrite"):
+        calibrate.main(calibrate.get_args_parser().parse_args(
+            ["--config", config, "--checkpoint", str(best), "--out", str(best)]))  # fmt: skip
 
 
 def test_init_checkpoint_starts_from_a_trained_net(straight: Path, tmp_path) -> None:

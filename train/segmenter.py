@@ -29,10 +29,10 @@ import torch
 from torch.utils.data import DataLoader, DistributedSampler
 from tqdm import tqdm
 
-from gaitnet.config import config_to_dict, dump_config, load_config, parse_config
-from gaitnet.errors import USER_ERRORS, ConfigError, InputError, user_error_message
+from gaitnet.config import config_to_dict, dump_config, load_config
+from gaitnet.errors import USER_ERRORS, InputError, user_error_message
 from gaitnet.io.atomic import atomic_write_text
-from gaitnet.segmentation.fcn import model_input
+from gaitnet.segmentation.segmenter_net import model_input
 from gaitnet.training.checkpoint import (
     CheckpointError,
     git_hash,
@@ -60,7 +60,6 @@ from gaitnet.training.scripts import ScriptParser
 from gaitnet.training.seeding import seed_everything
 from gaitnet.training.segmenter import (
     CLASS_NAMES,
-    ModelConfig,
     SegmenterTrainingConfig,
     architecture_only,
     build_dataset,
@@ -71,6 +70,7 @@ from gaitnet.training.segmenter import (
     confusion_of,
     scores_of,
     set_name,
+    with_checkpoint_model,
 )
 
 logger = logging.getLogger("train.segmenter")
@@ -218,24 +218,6 @@ def _per_class(scores: dict[str, Any]) -> dict[str, float | None]:
     return dict(zip(class_names(len(iou)), iou, strict=True))
 
 
-def _with_checkpoint_model(
-    cfg: SegmenterTrainingConfig, ckpt: dict[str, Any], path: Path
-) -> SegmenterTrainingConfig:
-    """Architecture keys (``model.*``) come from the checkpoint (as nanoGPT does on resume)."""
-    try:
-        model = parse_config(ModelConfig, ckpt["config"]["model"], f"{path} (config)")
-    except (ConfigError, KeyError, TypeError) as exc:
-        raise CheckpointError(
-            f"checkpoint {path}: no usable segmenter architecture in its config ({exc})"
-        ) from exc
-    if model != cfg.model:
-        logger.warning("model keys taken from %s: %s (config had %s)", path, model, cfg.model)
-    try:
-        return replace(cfg, model=model)
-    except ValueError as exc:
-        raise ConfigError(f"{path} (config): {exc}") from exc
-
-
 def eval_sets(
     cfg: SegmenterTrainingConfig,
     predict: Any,
@@ -300,7 +282,7 @@ def main(args: argparse.Namespace) -> int:
     ckpt = None
     if ckpt_path is not None:
         ckpt = load_checkpoint(ckpt_path)
-        cfg = _with_checkpoint_model(cfg, ckpt, ckpt_path)
+        cfg = with_checkpoint_model(cfg, ckpt, ckpt_path)
     return train(cfg, args, info, device, ckpt, ckpt_path)
 
 
@@ -551,7 +533,7 @@ def eval_only(cfg: SegmenterTrainingConfig, args: argparse.Namespace, device: to
     if args.checkpoint is not None:
         source = Path(args.checkpoint)
         ckpt = load_checkpoint(source)
-        cfg = _with_checkpoint_model(cfg, ckpt, source)
+        cfg = with_checkpoint_model(cfg, ckpt, source)
         model = build_model(architecture_only(cfg.model)).to(device)
         load_state(model, ckpt["model"], source, "model")
         predict = torch_predict(model, cfg.model.arch, device)

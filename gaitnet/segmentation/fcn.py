@@ -1,5 +1,5 @@
-"""FCN-8s on torchvision's VGG16 and the RGB / HHA / RGB+HHA late-fusion segmenter (thesis
-sec. 4.1).
+"""FCN-8s on torchvision's VGG16, one stream of the segmenter (thesis sec. 4.1;
+:mod:`gaitnet.segmentation.segmenter_net` combines the streams).
 
 FCN-8s as published (Long, Shelhamer, Darrell, "Fully Convolutional Networks for Semantic
 Segmentation", CVPR 2015; reference nets at github.com/shelhamer/fcn.berkeleyvision.org):
@@ -31,60 +31,28 @@ further: a ×2 upsampling of the fused 1/8 map summed with a score layer on ``po
 over 4 or 2 input pixels instead of 8. The same algebra gives the offsets: ``same`` 1 into
 each upsampled map and output crops 2 (stride 4) and 1 (stride 2); ``published`` 17 (pool2)
 and 33 (pool1) into the score maps and output crops 33 and 34.
-
-:class:`SegmenterNet` wraps one stream (``arch`` "rgb" or "hha") or two (``"fusion"``: the
-RGB and HHA streams' class score maps are summed, the thesis's late fusion, trained jointly).
-It takes channels in [0, 1] (RGB/255, HHA/255, or both concatenated), normalises them itself
-(ImageNet mean/std for RGB, :data:`HHA_MEAN` / :data:`HHA_STD` for HHA), resizes the input by
-``input_scale`` before the streams (bilinear, no antialiasing, so the ONNX graph matches) and
-returns logits at the input size.
-
-:func:`build_segmenter` can start both streams from torchvision's ImageNet VGG16 weights given
-as a LOCAL state-dict file (:mod:`gaitnet.segmentation.vgg16_weights`; nothing is downloaded).
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import torch
 from torch import nn
-from torch.nn import functional as nnf
 from torchvision.models import vgg as tv_vgg
 
-from gaitnet.errors import ConfigError, InputError, one_line
-from gaitnet.segmentation.channels import (
-    ARCHS,
-    HHA_MEAN,
-    HHA_STD,
-    RGB_MEAN,
-    RGB_STD,
-    check_arch,
-    input_channels,
-)
-from gaitnet.segmentation.vgg16_weights import load_vgg16_weights, read_vgg16_weights
+from gaitnet.errors import ConfigError
 
 __all__ = [
-    "ARCHS",
-    "HHA_MEAN",
-    "HHA_STD",
-    "RGB_MEAN",
-    "RGB_STD",
     "OUTPUT_STRIDES",
     "PADDINGS",
     "FCN8s",
-    "SegmenterNet",
     "bilinear_kernel",
-    "build_segmenter",
+    "check_output_stride",
+    "check_padding",
     "fcn8s_parameter_count",
-    "input_channels",
-    "model_input",
     "scaled_channels",
-    "segmenter_from_checkpoint",
 ]
 
 #: torchvision's VGG16 layer list ("D": channels, "M" = 2×2 max pooling).
@@ -208,8 +176,8 @@ class FCN8s(nn.Module):
         output_stride: int = 8,
     ) -> None:
         super().__init__()
-        self.padding = _check_padding(padding)
-        self.output_stride = _check_output_stride(output_stride)
+        self.padding = check_padding(padding)
+        self.output_stride = check_output_stride(output_stride)
         geometry = _GEOMETRY[padding]
         cfg = [v if v == "M" else scaled_channels(int(v), width) for v in VGG16_CFG]
         self.features = tv_vgg.make_layers(cfg)
@@ -293,7 +261,7 @@ def _fuse(up: torch.Tensor, skip: torch.Tensor, offsets: tuple[int, int]) -> tor
     return up[:, :, a : a + h, a : a + w] + skip[:, :, b : b + h, b : b + w]
 
 
-def _check_output_stride(stride: Any) -> int:
+def check_output_stride(stride: Any) -> int:
     if isinstance(stride, bool) or stride not in OUTPUT_STRIDES:
         raise ConfigError(
             f"segmenter output_stride must be one of {list(OUTPUT_STRIDES)}, got {stride!r}"
@@ -301,183 +269,7 @@ def _check_output_stride(stride: Any) -> int:
     return int(stride)
 
 
-def _check_padding(padding: Any) -> str:
+def check_padding(padding: Any) -> str:
     if padding not in PADDINGS:
         raise ConfigError(f"segmenter padding must be one of {list(PADDINGS)}, got {padding!r}")
     return padding
-
-
-class SegmenterNet(nn.Module):
-    """RGB, HHA or late-fusion RGB+HHA FCN-8s (thesis sec. 4.1).
-
-    ``forward(x)``: ``x`` (B, C, H, W) float32 in [0, 1], ``C = input_channels(arch)`` (RGB/255,
-    HHA/255, or RGB/255 then HHA/255) → logits (B, num_classes, H, W). Fusion sums the streams'
-    score maps. With ``input_scale < 1`` the streams see the input resized by that factor and
-    the logits are upsampled (bilinear) back to H × W.
-    """
-
-    def __init__(
-        self,
-        arch: str,
-        width: float = 1.0,
-        num_classes: int = 3,
-        input_scale: float = 1.0,
-        padding: str = "published",
-        output_stride: int = 8,
-    ) -> None:
-        super().__init__()
-        self.arch = check_arch(arch)
-        self.padding = _check_padding(padding)
-        self.output_stride = _check_output_stride(output_stride)
-        self.width = _check_real("segmenter width", width, 0.0, 1.0, open_lo=True)
-        self.input_scale = _check_real("segmenter input_scale", input_scale, 0.0, 1.0, True)
-        if isinstance(num_classes, bool) or not isinstance(num_classes, int) or num_classes < 2:
-            raise ConfigError(f"segmenter num_classes must be an integer ≥ 2, got {num_classes!r}")
-        self.num_classes = num_classes
-        streams = ("rgb", "fusion"), ("hha", "fusion")
-        geometry = {"padding": padding, "output_stride": output_stride}
-        self.rgb = FCN8s(num_classes, width, **geometry) if arch in streams[0] else None
-        self.hha = FCN8s(num_classes, width, **geometry) if arch in streams[1] else None
-        mean = (RGB_MEAN if self.rgb else ()) + (HHA_MEAN if self.hha else ())
-        std = (RGB_STD if self.rgb else ()) + (HHA_STD if self.hha else ())
-        # Constants of the architecture, not learned state: kept out of state dicts.
-        self.register_buffer("mean", torch.tensor(mean).view(1, -1, 1, 1), persistent=False)
-        self.register_buffer("std", torch.tensor(std).view(1, -1, 1, 1), persistent=False)
-
-    @property
-    def in_channels(self) -> int:
-        return input_channels(self.arch)
-
-    def config(self) -> dict[str, Any]:
-        """The keys :func:`segmenter_from_checkpoint` reads (``config["model"]``)."""
-        return {
-            "arch": self.arch,
-            "width": self.width,
-            "num_classes": self.num_classes,
-            "input_scale": self.input_scale,
-            "padding": self.padding,
-            "output_stride": self.output_stride,
-        }
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        height, width = x.shape[2], x.shape[3]
-        h = x
-        if self.input_scale != 1.0:
-            size = (
-                max(1, round(height * self.input_scale)),
-                max(1, round(width * self.input_scale)),
-            )
-            h = nnf.interpolate(h, size=size, mode="bilinear", align_corners=False, antialias=False)
-        # After the resize (bilinear weights sum to 1, so the order does not matter): fewer pixels.
-        h = (h - self.mean) / self.std
-        if self.rgb is not None and self.hha is not None:
-            score = self.rgb(h[:, :3]) + self.hha(h[:, 3:])  # late fusion: summed score maps
-        else:
-            stream = self.rgb if self.rgb is not None else self.hha
-            assert stream is not None
-            score = stream(h)
-        if self.input_scale != 1.0:
-            score = nnf.interpolate(
-                score, size=(height, width), mode="bilinear", align_corners=False, antialias=False
-            )
-        return score
-
-
-def _check_real(name: str, value: Any, lo: float, hi: float, open_lo: bool) -> float:
-    ok = (
-        isinstance(value, (int, float))
-        and not isinstance(value, bool)
-        and math.isfinite(value)
-        and (value > lo if open_lo else value >= lo)
-        and value <= hi
-    )
-    if not ok:
-        left = "(" if open_lo else "["
-        raise ConfigError(f"{name} must be a number in {left}{lo:g}, {hi:g}], got {value!r}")
-    return float(value)
-
-
-def model_input(
-    arch: str, rgb: torch.Tensor | None = None, hha: torch.Tensor | None = None
-) -> torch.Tensor:
-    """The network input of ``arch`` from (B, 3, H, W) RGB/255 and HHA/255 tensors: ``rgb``,
-    ``hha`` or both concatenated along channels (RGB first)."""
-    check_arch(arch)
-    if arch in ("rgb", "fusion") and rgb is None:
-        raise InputError(f"segmenter arch {arch!r} needs an RGB input")
-    if arch in ("hha", "fusion") and hha is None:
-        raise InputError(f"segmenter arch {arch!r} needs an HHA input")
-    if arch == "rgb":
-        return rgb  # type: ignore[return-value]
-    if arch == "hha":
-        return hha  # type: ignore[return-value]
-    return torch.cat([rgb, hha], dim=1)  # type: ignore[list-item]
-
-
-def build_segmenter(
-    arch: str,
-    width: float = 1.0,
-    num_classes: int = 3,
-    input_scale: float = 1.0,
-    vgg16_weights: str | Path | None = None,
-    padding: str = "published",
-    output_stride: int = 8,
-) -> SegmenterNet:
-    """A :class:`SegmenterNet`, optionally started from local ImageNet VGG16 weights
-    (:func:`gaitnet.segmentation.vgg16_weights.read_vgg16_weights`, read before the net is
-    built; ``width`` must then be 1.0)."""
-    if vgg16_weights is not None and width != 1.0:
-        raise ConfigError(
-            f"VGG16 weights {vgg16_weights}: ImageNet weights fit only the published width "
-            f"1.0, not width {width!r}"
-        )
-    state = None if vgg16_weights is None else read_vgg16_weights(vgg16_weights)
-    net = SegmenterNet(
-        arch,
-        width=width,
-        num_classes=num_classes,
-        input_scale=input_scale,
-        padding=padding,
-        output_stride=output_stride,
-    )
-    if state is not None:
-        load_vgg16_weights(net, state)
-    return net
-
-
-def segmenter_from_checkpoint(ckpt: Mapping[str, Any], source: str = "checkpoint") -> SegmenterNet:
-    """The trained :class:`SegmenterNet` of a checkpoint dict written by
-    ``train/segmenter.py``: ``ckpt["config"]["model"]`` gives ``arch``, ``width``,
-    ``num_classes``, ``input_scale``, ``padding`` ("published" when absent: checkpoints from
-    before the option) and ``output_stride`` (8 when absent); ``ckpt["model"]`` the state dict. ``source`` (the file)
-    names the checkpoint in errors. Returned in eval mode on the CPU."""
-    if not isinstance(ckpt, Mapping):
-        raise InputError(f"{source}: not a checkpoint dict")
-    config = ckpt.get("config")
-    model_cfg = config.get("model") if isinstance(config, Mapping) else None
-    if not isinstance(model_cfg, Mapping):
-        raise InputError(f"{source}: lacks the mapping config.model (a segmenter checkpoint?)")
-    missing = [k for k in ("arch", "width", "num_classes", "input_scale") if k not in model_cfg]
-    if missing:
-        raise InputError(f"{source}: config.model lacks key(s) {missing}")
-    try:
-        net = SegmenterNet(
-            model_cfg["arch"],
-            width=model_cfg["width"],
-            num_classes=model_cfg["num_classes"],
-            input_scale=model_cfg["input_scale"],
-            padding=model_cfg.get("padding", "published"),
-            output_stride=model_cfg.get("output_stride", 8),
-        )
-    except ConfigError as exc:
-        raise InputError(f"{source}: config.model: {exc}") from exc
-    state = ckpt.get("model")
-    if not isinstance(state, Mapping):
-        raise InputError(f"{source}: key 'model' must be a state dict")
-    try:
-        net.load_state_dict(state)
-    except (RuntimeError, ValueError, KeyError, TypeError) as exc:
-        raise InputError(
-            f"{source}: its model state does not fit config.model ({one_line(exc, limit=300)})"
-        ) from exc
-    return net.eval()

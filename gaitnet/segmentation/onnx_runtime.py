@@ -1,8 +1,9 @@
 """ONNX export of the segmenter with a parity check, and its onnxruntime wrapper.
 
-The exported graph is :meth:`gaitnet.segmentation.fcn.SegmenterNet.forward`, normalisation and
-``input_scale`` resizing included: input ``image`` (batch, C, H, W) float32 in [0, 1] (C = 3
-RGB/255 or HHA/255, or 6: RGB/255 then HHA/255) → output ``logits`` (batch, classes, H, W),
+The exported graph is :meth:`gaitnet.segmentation.segmenter_net.SegmenterNet.forward`,
+normalisation, ``input_scale`` resizing and ``logit_bias`` included: input ``image`` (batch,
+C, H, W) float32 in [0, 1] (C = 3 RGB/255 or HHA/255, or 6: RGB/255 then HHA/255) → output
+``logits`` (batch, classes, H, W),
 with a dynamic batch and a fixed frame size (640 × 480 by default). The export
 (:func:`export_segmenter_onnx`, through :func:`gaitnet.io.onnx_export.export_onnx_checked`) is
 refused, and nothing is written, unless onnxruntime reproduces PyTorch within ``atol`` (max
@@ -47,7 +48,7 @@ from gaitnet.segmentation.channels import (
 if TYPE_CHECKING:  # PyTorch is imported only to export (module docstring)
     import torch
 
-    from gaitnet.segmentation.fcn import SegmenterNet
+    from gaitnet.segmentation.segmenter_net import SegmenterNet
 
 __all__ = [
     "DEFAULT_CLASSES",
@@ -75,6 +76,7 @@ METADATA_KEYS = (
     "gaitnet.input_scale",
     "gaitnet.padding",
     "gaitnet.output_stride",
+    "gaitnet.logit_bias",
     "gaitnet.classes",
     "gaitnet.input",
     "gaitnet.normalisation",
@@ -106,6 +108,7 @@ def segmenter_metadata(model: SegmenterNet, classes: Sequence[str]) -> dict[str,
         "gaitnet.input_scale": repr(model.input_scale),
         "gaitnet.padding": model.padding,
         "gaitnet.output_stride": str(model.output_stride),
+        "gaitnet.logit_bias": json.dumps(list(model.logit_bias)),
         "gaitnet.classes": json.dumps(list(classes)),
         "gaitnet.input": f"float32 (batch, {model.in_channels}, H, W) in [0, 1]: "
         + _CHANNELS[model.arch],

@@ -5,7 +5,7 @@ copied, ``fc6``/``fc7`` from the classifier's first two linear layers reshaped i
 convolutions. :func:`read_vgg16_weights` reads a torchvision VGG16 state-dict file (e.g.
 ``vgg16-397923af.pth``) with ``torch.load(..., weights_only=True)`` and checks it key by key
 against ``torchvision.models.vgg16``; nothing is ever downloaded. :func:`load_vgg16_weights`
-copies it into every stream of a width-1 :class:`~gaitnet.segmentation.fcn.SegmenterNet`.
+copies it into every stream of a width-1 :class:`~gaitnet.segmentation.segmenter_net.SegmenterNet`.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import torchvision
 from gaitnet.errors import ConfigError, InputError, one_line
 
 if TYPE_CHECKING:
-    from gaitnet.segmentation.fcn import SegmenterNet
+    from gaitnet.segmentation.segmenter_net import SegmenterNet
 
 __all__ = ["load_vgg16_weights", "read_vgg16_weights"]
 

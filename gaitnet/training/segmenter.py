@@ -34,22 +34,23 @@ import numpy as np
 import torch
 
 from gaitnet.checks import check_int_range, check_range
+from gaitnet.config import parse_config
 from gaitnet.errors import ConfigError, InputError
 from gaitnet.evaluation.segmentation import confusion_matrix, segmentation_scores
 from gaitnet.segmentation.augment import AugmentParams
+from gaitnet.segmentation.channels import ARCHS
 from gaitnet.segmentation.dataset import SegmentationFolder
-from gaitnet.segmentation.fcn import (
-    ARCHS,
-    OUTPUT_STRIDES,
-    PADDINGS,
-    SegmenterNet,
-    build_segmenter,
-    segmenter_from_checkpoint,
-)
+from gaitnet.segmentation.fcn import OUTPUT_STRIDES, PADDINGS
 from gaitnet.segmentation.focal_loss import FocalLoss
 from gaitnet.segmentation.folder_files import read_split
 from gaitnet.segmentation.hha import hha_stride
-from gaitnet.training.checkpoint import load_checkpoint
+from gaitnet.segmentation.segmenter_net import (
+    SegmenterNet,
+    build_segmenter,
+    check_logit_bias,
+    segmenter_from_checkpoint,
+)
+from gaitnet.training.checkpoint import CheckpointError, load_checkpoint
 from gaitnet.training.predictor import DEVICE_PATTERN
 
 __all__ = [
@@ -62,6 +63,7 @@ __all__ = [
     "SegmenterTrainingConfig",
     "TrainConfig",
     "architecture_only",
+    "with_checkpoint_model",
     "build_dataset",
     "build_loss",
     "build_model",
@@ -100,7 +102,7 @@ class DataConfig:
 
 @dataclass(frozen=True)
 class ModelConfig:
-    """The net (:func:`gaitnet.segmentation.fcn.build_segmenter`)."""
+    """The net (:func:`gaitnet.segmentation.segmenter_net.build_segmenter`)."""
 
     arch: Literal["rgb", "hha", "fusion"] = "fusion"
     width: float = 1.0
@@ -110,6 +112,7 @@ class ModelConfig:
     padding: Literal["published", "same"] = "published"
     output_stride: int = 8
     init_checkpoint: Path | None = None
+    logit_bias: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.arch not in ARCHS:
@@ -129,6 +132,10 @@ class ModelConfig:
                 "model.vgg16_weights needs model.width 1 (ImageNet weights fit the published "
                 f"width only), got width {self.width:g}"
             )
+        try:
+            check_logit_bias(self.logit_bias, self.num_classes, "model.logit_bias")
+        except ConfigError as exc:
+            raise ValueError(str(exc)) from exc
         if self.vgg16_weights is not None and self.init_checkpoint is not None:
             raise ValueError(
                 "model.vgg16_weights and model.init_checkpoint exclude each other (both "
@@ -321,11 +328,31 @@ def build_model(cfg: ModelConfig) -> SegmenterNet:
         vgg16_weights=cfg.vgg16_weights,
         padding=cfg.padding,
         output_stride=cfg.output_stride,
+        logit_bias=cfg.logit_bias,
     )
     if cfg.init_checkpoint is not None:
         new = start_from_checkpoint(net, cfg.init_checkpoint)
         logger.info("started from %s; new layers: %s", cfg.init_checkpoint, ", ".join(new))
     return net
+
+
+def with_checkpoint_model(
+    cfg: SegmenterTrainingConfig, ckpt: dict[str, Any], path: Path
+) -> SegmenterTrainingConfig:
+    """``cfg`` with its architecture keys (``model.*``) from the checkpoint ``ckpt`` read from
+    ``path`` (as nanoGPT does on resume)."""
+    try:
+        model = parse_config(ModelConfig, ckpt["config"]["model"], f"{path} (config)")
+    except (ConfigError, KeyError, TypeError) as exc:
+        raise CheckpointError(
+            f"checkpoint {path}: no usable segmenter architecture in its config ({exc})"
+        ) from exc
+    if model != cfg.model:
+        logger.warning("model keys taken from %s: %s (config had %s)", path, model, cfg.model)
+    try:
+        return replace(cfg, model=model)
+    except ValueError as exc:
+        raise ConfigError(f"{path} (config): {exc}") from exc
 
 
 def architecture_only(cfg: ModelConfig) -> ModelConfig:
