@@ -1,9 +1,9 @@
 """Inference time of the segmenter per 640×480 frame: PyTorch eager vs onnxruntime, 1 and 2 threads.
 
-For each variant (arch, width, input_scale, padding) a net with random weights is built,
-exported with the parity check (gaitnet.segmentation.onnx_runtime.export_segmenter_onnx) and
-timed at batch 1 (the pipeline's per-frame case) on random frames in [0, 1]: ``torch.no_grad``
-eager with
+For each variant (arch, width, input_scale, padding, output stride) a net with random weights
+is built, exported with the parity check
+(gaitnet.segmentation.onnx_runtime.export_segmenter_onnx) and timed at batch 1 (the pipeline's
+per-frame case) on random frames in [0, 1]: ``torch.no_grad`` eager with
 ``torch.set_num_threads(t)`` and :class:`OnnxSegmenter` (its input checks included) with
 ``threads=t`` for t = 1, 2. The first call is a warm-up; a variant whose warm-up takes longer
 than ``--slow`` seconds (the published width 1) is timed once. Prints median (min) wall ms per
@@ -14,6 +14,7 @@ with onnxruntime on 2 threads.
 
     nice -n 10 python benchmarks/bench_segmenter.py                  # the default table
     python benchmarks/bench_segmenter.py --variants fusion:0.0625:0.5:same rgb:0.125:1 --runs 20
+    python benchmarks/bench_segmenter.py --variants fusion:0.0625:0.5:same:4      # output stride 4
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ import numpy as np
 import torch
 
 from gaitnet.segmentation.channels import ARCHS, input_channels
-from gaitnet.segmentation.fcn import PADDINGS
+from gaitnet.segmentation.fcn import OUTPUT_STRIDES, PADDINGS
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter, export_segmenter_onnx
 from gaitnet.segmentation.segmenter_net import SegmenterNet
 
@@ -54,19 +55,23 @@ DEFAULT_VARIANTS = (
 )
 
 
-def parse_variant(text: str) -> tuple[str, float, float, str]:
+def parse_variant(text: str) -> tuple[str, float, float, str, int]:
     parts = text.split(":")
-    if len(parts) == 3:
-        parts.append("published")
-    if len(parts) != 4:
-        raise argparse.ArgumentTypeError(f"expected arch:width:input_scale[:padding], got {text}")
-    arch, width, scale, padding = parts
+    defaults = ["published", "8"]  # padding, output stride
+    parts += defaults[len(parts) - 3 :] if 3 <= len(parts) < 5 else []
+    if len(parts) != 5:
+        raise argparse.ArgumentTypeError(
+            f"expected arch:width:input_scale[:padding[:output_stride]], got {text}"
+        )
+    arch, width, scale, padding, stride = parts
     if arch not in ARCHS:
         raise argparse.ArgumentTypeError(f"arch must be one of {ARCHS}: {text}")
     if padding not in PADDINGS:
         raise argparse.ArgumentTypeError(f"padding must be one of {PADDINGS}: {text}")
+    if stride not in {str(s) for s in OUTPUT_STRIDES}:
+        raise argparse.ArgumentTypeError(f"output stride must be one of {OUTPUT_STRIDES}: {text}")
     try:
-        return arch, float(width), float(scale), padding
+        return arch, float(width), float(scale), padding, int(stride)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(f"width and input_scale must be numbers: {text}") from exc
 
@@ -98,15 +103,18 @@ def cpu_name() -> str:
 
 
 def bench_variant(
-    arch: str, width: float, scale: float, padding: str, args: argparse.Namespace, folder: Path
+    variant: tuple[str, float, float, str, int], args: argparse.Namespace, folder: Path
 ) -> dict:
+    arch, width, scale, padding, stride = variant
     torch.manual_seed(0)
-    net = SegmenterNet(arch, width=width, input_scale=scale, padding=padding).eval()
+    net = SegmenterNet(
+        arch, width=width, input_scale=scale, padding=padding, output_stride=stride
+    ).eval()
     with torch.no_grad():  # score layers start at zero: give them values
-        for layer in (s for s in (net.rgb, net.hha) if s is not None):
-            for m in (layer.score_fr, layer.score_pool4, layer.score_pool3):
-                m.weight.normal_(0.0, 0.01)
-    path = folder / f"{arch}_{width:g}_{scale:g}_{padding}.onnx"
+        for name, layer in net.named_modules():
+            if name.split(".")[-1].startswith("score_"):
+                layer.weight.normal_(0.0, 0.01)
+    path = folder / f"{arch}_{width:g}_{scale:g}_{padding}_{stride}.onnx"
     t0 = time.perf_counter()
     report = export_segmenter_onnx(
         net, path, height=args.height, width=args.width, batch_sizes=(1,)
@@ -117,6 +125,7 @@ def bench_variant(
     xt = torch.from_numpy(x)
     row = {
         "arch": arch,
+        "output_stride": stride,
         "width": width,
         "input_scale": scale,
         "padding": padding,
@@ -171,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
         f"{cpu_name()}, {os.cpu_count()} CPUs, nice {os.nice(0)}, torch {torch.__version__}, "
         f"frame {args.width}x{args.height}, batch 1, load average {load_before[0]:.2f}"
     )
-    head = (f"{'arch':6} {'width':>6} {'scale':>5} {'pad':>4} {'params':>9} {'MB':>6} | "
+    head = (f"{'arch':6} {'width':>6} {'scale':>5} {'pad':>4} {'os':>2} {'params':>9} {'MB':>6} | "
             f"{'torch 1 thread':>18} {'torch 2 threads':>18} | {'ort 1 thread':>18} "
             f"{'ort 2 threads':>18} | {'fps ort 2t':>10} | "
             f"{'cpu torch 1t':>12} {'cpu ort 1t':>10}")  # fmt: skip
@@ -180,14 +189,16 @@ def main(argv: list[str] | None = None) -> int:
     print("-" * len(head))
     rows = []
     with tempfile.TemporaryDirectory(prefix="bench_segmenter_") as tmp:
-        for arch, width, scale, padding in variants:
-            row = bench_variant(arch, width, scale, padding, args, Path(tmp))
+        for variant in variants:
+            arch, width, scale, padding, stride = variant
+            row = bench_variant(variant, args, Path(tmp))
             rows.append(row)
             fps = 1e3 / row["ort_2t_ms"][0]
             torch_cells = f"{fmt(row['torch_1t_ms'])} {fmt(row['torch_2t_ms'])}"
             ort_cells = f"{fmt(row['ort_1t_ms'])} {fmt(row['ort_2t_ms'])}"
             print(
-                f"{arch:6} {width:6.4g} {scale:5.2g} {padding[:4]:>4} {row['params'] / 1e6:8.2f}M "
+                f"{arch:6} {width:6.4g} {scale:5.2g} {padding[:4]:>4} {stride:2d} "
+                f"{row['params'] / 1e6:8.2f}M "
                 f"{row['onnx_mb']:6.2f} | {torch_cells} | {ort_cells} | {fps:10.1f} | "
                 f"{row['torch_1t_cpu_ms']:12.1f} {row['ort_1t_cpu_ms']:10.1f}",
                 flush=True,

@@ -171,6 +171,7 @@ def run_segmenter(args: argparse.Namespace) -> int:
             "git_hash": ckpt["git_hash"],
         },
         "config": ckpt["config"],
+        "calibration": ckpt.get("calibration"),
         "metrics": read_eval(checkpoint),
     }  # fmt: skip
     sidecar_path = out.with_suffix(".json")

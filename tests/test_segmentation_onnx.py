@@ -283,6 +283,8 @@ def test_committed_model_is_what_its_sidecar_says() -> None:
     assert (
         seg.input_scale == side["input_scale"]
         and seg.metadata["gaitnet.padding"] == side["padding"]
+        and int(seg.metadata["gaitnet.output_stride"]) == side["output_stride"]
+        and json.loads(seg.metadata["gaitnet.logit_bias"]) == side["logit_bias"]
     )
     assert seg.classes == tuple(side["classes"]) == ("background", "foot", "leg")
     labels = seg.predict(np.zeros((1, 6, 480, 640), np.float32))
