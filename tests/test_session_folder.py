@@ -314,3 +314,17 @@ def test_tag_corners_follow_the_aruco_order() -> None:
     )
     with pytest.raises(KeyError):
         tag_corners_in_board(board, 35)
+
+
+def test_interrupt_while_the_writer_is_built_leaves_nothing(tmp_path, monkeypatch) -> None:
+    """A signal (arriving as KeyboardInterrupt) after the staging folder exists but before the
+    caller holds the writer removes the staging folder: nothing is left beside the output."""
+    import gaitnet.io.session_folder as session_folder
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(session_folder, "ThreadPoolExecutor", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        SessionWriter(tmp_path / "out", tiny_calibration(), encode_threads=2)
+    assert list(tmp_path.iterdir()) == []

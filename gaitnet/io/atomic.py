@@ -217,9 +217,13 @@ class StagedFolder:
         self.root.parent.mkdir(parents=True, exist_ok=True)
         clean_leftovers(self.root)
         self.path = self.root.parent / f".{self.root.name}.partial-{os.getpid()}"
-        _remove(self.path)
-        self.path.mkdir()
         self.done = False
+        _remove(self.path)
+        try:
+            self.path.mkdir()
+        except BaseException:  # an interrupt right after mkdir (signals arrive as exceptions)
+            self.abort()
+            raise
 
     def commit(self) -> Path:
         """Publish the staging folder as ``root`` and return ``root``."""

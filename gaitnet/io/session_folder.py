@@ -215,12 +215,17 @@ class SessionWriter:
         self.overwrite = overwrite
         self._stage = StagedFolder(self.root, overwrite)
         self.staging = self._stage.path
-        (self.staging / "color").mkdir()
-        (self.staging / "depth").mkdir()
-        self._times: list[int] = []
-        self._imu: ImuSamples | None = None
-        self._pool = ThreadPoolExecutor(encode_threads) if encode_threads > 0 else None
-        self._pending: list[Future] = []
+        self._pool: ThreadPoolExecutor | None = None
+        try:  # an interrupt before the caller holds the writer must not leave the staging folder
+            (self.staging / "color").mkdir()
+            (self.staging / "depth").mkdir()
+            self._times: list[int] = []
+            self._imu: ImuSamples | None = None
+            self._pool = ThreadPoolExecutor(encode_threads) if encode_threads > 0 else None
+            self._pending: list[Future] = []
+        except BaseException:
+            self.abort()
+            raise
 
     def _fail(self, what: str) -> SessionError:
         return SessionError(f"{self.root}: {what}")
