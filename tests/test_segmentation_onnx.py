@@ -222,6 +222,9 @@ def _checkpoint(folder: Path, net: SegmenterNet, model_cfg: dict | None = None) 
 def test_export_script(tmp_path: Path) -> None:
     net = tiny("rgb", input_scale=0.5, seed=4)  # one stream: half the export time
     ckpt = _checkpoint(tmp_path / "run", net)
+    # the scores of this checkpoint (train/segmenter.py --eval-only) win over the run's eval.json
+    (ckpt.parent / "eval.json").write_text(json.dumps({"sets": {"end_of_training": {}}}))
+    (ckpt.parent / "eval_best.json").write_text(json.dumps({"sets": {"own": {}}, "config": {}}))
     out = tmp_path / "models" / "seg.onnx"
     cmd = [sys.executable, str(SCRIPT), "segmenter", "--checkpoint", str(ckpt), "--out", str(out)]
     done = subprocess.run([*cmd, "--height", "36", "--width", "52"], capture_output=True, text=True)
@@ -232,6 +235,8 @@ def test_export_script(tmp_path: Path) -> None:
     assert sidecar["arch"] == "rgb" and sidecar["input_scale"] == 0.5
     assert sidecar["input"]["shape"] == ["batch", 3, 36, 52]
     assert sidecar["classes"] == ["background", "foot", "leg"]
+    assert sidecar["metrics"] == {"sets": {"own": {}}} and sidecar["calibration"] is None
+    assert sidecar["logit_bias"] == [0.0, 0.0, 0.0] and sidecar["output_stride"] == 8
     assert sidecar["checkpoint"]["epoch"] == 4 and sidecar["parameters"] == sum(
         p.numel() for p in net.parameters()
     )
