@@ -36,9 +36,9 @@ from gaitnet.segmentation.fcn import OUTPUT_STRIDES, PADDINGS
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter, export_segmenter_onnx
 from gaitnet.segmentation.segmenter_net import SegmenterNet
 
-#: arch:width:input_scale[:padding] (padding "published" when left out) — fusion at every width
-#: (full frames and half-size inside the net), the published width 1 once, the single streams at
-#: the CPU default, and the CPU default with "same" padding.
+#: arch:width:input_scale[:padding[:output_stride]] (padding "published", stride 8 when left
+#: out) — fusion at every width (full frames and half-size inside the net), the published
+#: width 1 once, the single streams at the CPU default, and the CPU default with "same" padding.
 DEFAULT_VARIANTS = (
     "fusion:0.0625:0.5",
     "fusion:0.0625:0.5:same",
@@ -161,7 +161,8 @@ def main(argv: list[str] | None = None) -> int:
         nargs="+",
         type=parse_variant,
         default=None,
-        help="arch:width:input_scale[:padding] ... (default: the table in the docstring)",
+        help="arch:width:input_scale[:padding[:output_stride]] ... (default: the table in the "
+        "docstring)",
     )
     parser.add_argument("--runs", type=int, default=10, help="timed calls per measurement")
     parser.add_argument(

@@ -1,10 +1,12 @@
-"""How sharp can a segmenter whose logits come from a coarse grid draw the feet?
+"""How sharp are the feet when the scores come from a coarse grid?
 
 For each output stride (in frame pixels) the TRUE label maps of a labelled set are averaged over
-stride × stride cells (one-hot, ``avg_pool2d``) and upsampled back bilinearly, as a net's
-coarsest score map is, and the arg-max is scored against the labels: the IoU a perfect net
-reaches when its logits come from that grid (the committed model's input scale 0.5 makes its
-output stride 4 a stride of 8 frame pixels). docs/segmenter.md, *Finer output and calibration*.
+stride × stride cells (the one-hot labels of the valid pixels, ``avg_pool2d``) and upsampled
+back bilinearly, as a net's coarsest score map is, and the arg-max is scored against the
+labels: the IoU of the cell-average score map of each grid, a guide to what a net of that
+output stride can draw (not a strict bound: a net's scores need not be cell averages). The
+committed model's input scale 0.5 makes its output stride 4 a grid of 8 frame pixels.
+docs/segmenter.md, *Finer output and calibration*.
 
     python benchmarks/bench_segmenter_resolution.py data/cache/seg/test/test.txt \
         [--strides 16 8 4 2]
@@ -20,7 +22,7 @@ import numpy as np
 import torch
 from torch.nn import functional as nnf
 
-from gaitnet.errors import USER_ERRORS, user_error_message
+from gaitnet.errors import USER_ERRORS, InputError, user_error_message
 from gaitnet.evaluation.segmentation import confusion_matrix, segmentation_scores
 from gaitnet.segmentation.dataset import SegmentationFolder
 from gaitnet.training.segmenter import resolve_set, set_name
@@ -30,11 +32,13 @@ IGNORE = 255
 
 def ceiling_confusion(labels: np.ndarray, stride: int, num_classes: int) -> np.ndarray:
     """Confusion matrix of the arg-max of ``labels`` (H, W) averaged over ``stride``-pixel cells
-    and bilinearly upsampled back, against ``labels`` itself (ignored pixels count as class 0 in
-    the average and are not scored)."""
+    and bilinearly upsampled back, against ``labels`` itself (ignored pixels take no part in the
+    averages and are not scored)."""
     valid = labels != IGNORE
+    if np.any(labels[valid] >= num_classes):
+        raise InputError(f"a label value is ≥ the {num_classes} classes of --classes")
     onehot = nnf.one_hot(torch.from_numpy(np.where(valid, labels, 0).astype(np.int64)), num_classes)
-    grid = onehot.permute(2, 0, 1)[None].float()
+    grid = (onehot * torch.from_numpy(valid)[..., None]).permute(2, 0, 1)[None].float()
     coarse = nnf.avg_pool2d(grid, stride, ceil_mode=True)
     back = nnf.interpolate(coarse, size=labels.shape, mode="bilinear", align_corners=False)
     pred = back.argmax(1)[0].numpy()
@@ -48,6 +52,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--classes", default="background,foot,leg")
     args = parser.parse_args(argv)
     names = args.classes.split(",")
+    if min(args.strides) < 1 or len(names) < 2:
+        parser.error("--strides must be ≥ 1 and --classes must name at least 2 classes")
     try:
         print(f"{'set':10s} {'stride':>6s} {'mIoU':>7s} " + " ".join(f"{n:>10s}" for n in names))
         for path in args.sets:

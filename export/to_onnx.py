@@ -11,16 +11,19 @@ resolved config; the export is refused unless onnxruntime reproduces PyTorch wit
 Prints the largest absolute difference and writes a JSON sidecar next to the model
 (``NAME.json``): input/output names and shapes, n_past, n_future, dct_n, frame rate, the node
 layout, the training config and, when the run folder has one, the evaluation (eval.json).
+The scores in a sidecar are always the exported checkpoint's own (:func:`read_eval`).
 
 ``segmenter``: the FCN-8s foot/leg segmenter (``train/segmenter.py``). The net comes from the
 checkpoint (``config.model``: arch, width, num_classes, input_scale;
 gaitnet.segmentation.segmenter_net.segmenter_from_checkpoint) and is exported for frames of
 ``--height`` × ``--width`` with a dynamic batch; the export is refused unless onnxruntime
 reproduces PyTorch's logits within ``--atol`` (default 1e-4) on random inputs
-(gaitnet.segmentation.onnx_runtime.export_segmenter_onnx). The arch, width, input scale, class
-names and normalisation are stored in the model's metadata_props (what OnnxSegmenter reads);
-the JSON sidecar repeats them with the checkpoint, the training config and, when the run folder
-has one, eval.json.
+(gaitnet.segmentation.onnx_runtime.export_segmenter_onnx). The arch, width, input scale,
+padding, output stride, logit bias, class names and normalisation are stored in the model's
+metadata_props (what OnnxSegmenter reads); the JSON sidecar repeats them with the checkpoint,
+the training config, the calibration (``train/calibrate_segmenter.py``) and the checkpoint's
+scores: ``eval_<checkpoint name>.json`` beside it (``train/segmenter.py --eval-only``), or for
+``best.pt`` the run's eval.json.
 
 Each model kind is a subcommand with its own ``run_*`` function.
 """
@@ -40,13 +43,14 @@ from gaitnet.training.scripts import ScriptParser
 
 
 def read_eval(checkpoint: Path) -> Any:
-    """The checkpoint's scores for the sidecar (without their config), or None: the
-    ``eval_<name>.json`` that ``train/segmenter.py --eval-only`` writes next to it, else the run
-    folder's ``eval.json`` (written at the end of training, for ``best.pt``)."""
-    candidates = (
-        checkpoint.with_name(f"eval_{checkpoint.stem}.json"),
-        checkpoint.parent / "eval.json",
-    )
+    """The checkpoint's own scores for the sidecar (without their config), or None: the
+    ``eval_<name>.json`` that ``train/segmenter.py --eval-only`` writes next to it, else, for a
+    ``best.pt``, the run folder's ``eval.json`` (written at the end of training, of ``best.pt``).
+    Another checkpoint (``calibrated.pt``, ``last.pt``) without its own file gets None, never
+    the scores of a different one."""
+    candidates = [checkpoint.with_name(f"eval_{checkpoint.stem}.json")]
+    if checkpoint.stem == "best":
+        candidates.append(checkpoint.parent / "eval.json")
     eval_file = next((c for c in candidates if c.is_file()), None)
     if eval_file is None:
         return None

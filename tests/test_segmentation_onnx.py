@@ -205,8 +205,11 @@ def test_bad_export_arguments(tmp_path: Path) -> None:
     assert not (tmp_path / "x.onnx").exists()
 
 
-def _checkpoint(folder: Path, net: SegmenterNet, model_cfg: dict | None = None) -> Path:
+def _checkpoint(
+    folder: Path, net: SegmenterNet, model_cfg: dict | None = None, **extra: object
+) -> Path:
     state = {
+        **extra,
         "model": net.state_dict(),
         "optimizer": {},
         "scheduler": {},
@@ -221,7 +224,7 @@ def _checkpoint(folder: Path, net: SegmenterNet, model_cfg: dict | None = None) 
 
 def test_export_script(tmp_path: Path) -> None:
     net = tiny("rgb", input_scale=0.5, seed=4)  # one stream: half the export time
-    ckpt = _checkpoint(tmp_path / "run", net)
+    ckpt = _checkpoint(tmp_path / "run", net, calibration={"logit_bias": [0.0, 0.0, 0.0]})
     # the scores of this checkpoint (train/segmenter.py --eval-only) win over the run's eval.json
     (ckpt.parent / "eval.json").write_text(json.dumps({"sets": {"end_of_training": {}}}))
     (ckpt.parent / "eval_best.json").write_text(json.dumps({"sets": {"own": {}}, "config": {}}))
@@ -235,7 +238,8 @@ def test_export_script(tmp_path: Path) -> None:
     assert sidecar["arch"] == "rgb" and sidecar["input_scale"] == 0.5
     assert sidecar["input"]["shape"] == ["batch", 3, 36, 52]
     assert sidecar["classes"] == ["background", "foot", "leg"]
-    assert sidecar["metrics"] == {"sets": {"own": {}}} and sidecar["calibration"] is None
+    assert sidecar["metrics"] == {"sets": {"own": {}}}
+    assert sidecar["calibration"] == {"logit_bias": [0.0, 0.0, 0.0]}
     assert sidecar["logit_bias"] == [0.0, 0.0, 0.0] and sidecar["output_stride"] == 8
     assert sidecar["checkpoint"]["epoch"] == 4 and sidecar["parameters"] == sum(
         p.numel() for p in net.parameters()
@@ -294,3 +298,14 @@ def test_committed_model_is_what_its_sidecar_says() -> None:
     assert seg.classes == tuple(side["classes"]) == ("background", "foot", "leg")
     labels = seg.predict(np.zeros((1, 6, 480, 640), np.float32))
     assert labels.shape == (1, 480, 640)
+
+
+def test_sidecar_scores_are_the_checkpoints_own(tmp_path: Path) -> None:
+    spec = importlib.util.spec_from_file_location("to_onnx", SCRIPT)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    (tmp_path / "eval.json").write_text(json.dumps({"sets": {"best": {}}, "config": {}}))
+    assert script.read_eval(tmp_path / "best.pt") == {"sets": {"best": {}}}
+    assert script.read_eval(tmp_path / "calibrated.pt") is None  # not best.pt's scores
+    (tmp_path / "eval_calibrated.json").write_text(json.dumps({"sets": {"own": {}}}))
+    assert script.read_eval(tmp_path / "calibrated.pt") == {"sets": {"own": {}}}

@@ -250,17 +250,26 @@ def test_logit_bias_key_reaches_the_net() -> None:
 
 
 def test_calibration_writes_the_bias_that_maximises_val_miou(tmp_path, straight: Path) -> None:
-    """train/calibrate_segmenter.py: the written checkpoint is best.pt with the fitted bias; its
-    validation mIoU (scored independently by --eval-only) is the one the fit reports, and no
-    lower than before."""
+    """train/calibrate_segmenter.py on a checkpoint whose bias is far off (and whose config
+    names a start checkpoint that no longer exists: only the architecture is rebuilt): the
+    written checkpoint has the same weights, the old bias plus the fitted one, a higher
+    validation mIoU, and that mIoU is what --eval-only scores independently."""
+    source = load_checkpoint(straight / "best.pt")
+    off = dict(source, config={**source["config"], "model": {
+        **source["config"]["model"], "logit_bias": [0.0, 3.0, 3.0],
+        "init_checkpoint": str(tmp_path / "gone.pt")}})  # fmt: skip
+    skewed = tmp_path / "skewed.pt"
+    torch.save(off, skewed)
     out = tmp_path / "calibrated.pt"
-    config, best = str(straight / "config.yaml"), straight / "best.pt"
-    argv = ["--config", config, "--checkpoint", str(best), "--out", str(out)]
+    config = str(straight / "config.yaml")
+    argv = ["--config", config, "--checkpoint", str(skewed), "--out", str(out)]
     assert calibrate.main(calibrate.get_args_parser().parse_args(argv)) == 0
-    ckpt, source = load_checkpoint(out), load_checkpoint(best)
+    ckpt = load_checkpoint(out)
     info = ckpt["calibration"]
     assert ckpt["config"]["model"]["logit_bias"] == info["logit_bias"]
-    assert info["miou_after"] >= info["miou_before"] and info["frames"] == 2
+    np.testing.assert_allclose(info["logit_bias"], np.add([0.0, 3.0, 3.0], info["fitted_bias"]))
+    assert min(info["fitted_bias"]) < 0 and info["miou_after"] > info["miou_before"]
+    assert info["frames"] == 2
     for key, value in source["model"].items():
         assert torch.equal(ckpt["model"][key], value)
     scores = tmp_path / "scores.json"
@@ -270,6 +279,7 @@ def test_calibration_writes_the_bias_that_maximises_val_miou(tmp_path, straight:
     assert json.loads(scores.read_text())["sets"]["val"]["miou"] == pytest.approx(
         info["miou_after"], abs=1e-9
     )
+    best = straight / "best.pt"
     with pytest.raises(InputError, match="would overwrite"):
         calibrate.main(calibrate.get_args_parser().parse_args(
             ["--config", config, "--checkpoint", str(best), "--out", str(best)]))  # fmt: skip

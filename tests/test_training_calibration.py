@@ -66,6 +66,28 @@ def test_pixel_sample_drops_ignored_pixels_and_bounds_its_size() -> None:
     assert sample.arrays()[1].shape == (50,)
 
 
+def test_pixel_sample_is_uniform_over_all_batches() -> None:
+    """20 equal batches into a sample of 1000: each batch keeps about a twentieth of it (the
+    batch index is stored in the labels' place to count)."""
+    sample = PixelSample(num_classes=20, ignore_index=255, max_pixels=1000, seed=1)
+    for k in range(20):
+        sample.add(np.zeros((1, 20, 25, 20), np.float32), np.full((1, 25, 20), k))
+    shares = np.bincount(sample.arrays()[1], minlength=20) / 1000
+    assert sample.seen == 10_000 and len(sample.arrays()[1]) == 1000
+    assert shares.min() > 0.03 and shares.max() < 0.07  # binomial sd 0.007 around 0.05
+
+
+def test_a_class_the_set_lacks_is_refused_and_a_clamped_bias_flagged() -> None:
+    logits = _logits(3000)
+    with pytest.raises(InputError, match=r"class\(es\) \[2\] have no labelled pixel"):
+        fit_logit_bias(logits, np.argmax(logits[:, :2], axis=1))
+    labels = np.argmax(logits + np.array([0.0, -6.0, 0.0], np.float32), axis=1)
+    labels[:3] = 1  # a rare class, far below the grid's reach
+    fit = fit_logit_bias(logits, labels, grid=np.arange(-2.0, 2.01, 0.5))
+    assert fit.at_grid_edge and fit.bias[1] == -2.0
+    assert not fit_logit_bias(logits, np.argmax(logits, axis=1)).at_grid_edge
+
+
 def test_bad_input_is_named() -> None:
     sample = PixelSample(3, 255, 100)
     with pytest.raises(InputError, match="no labelled pixel"):
@@ -85,3 +107,18 @@ def test_bad_input_is_named() -> None:
         fit_logit_bias(logits, np.full(10, 3))
     with pytest.raises(InputError, match=r"\(N, C\) logits"):
         fit_logit_bias(logits, np.zeros(9, int))
+
+
+def test_joint_start_finds_a_bias_far_off(monkeypatch) -> None:
+    """Both non-background classes 3 logits too high: moving one at a time only swaps foot for
+    leg everywhere; the joint coarse start reaches the planted bias."""
+    import gaitnet.training.calibration as calibration
+
+    noise = 0.3 * _logits(30_000, seed=5)
+    labels = np.argmax(noise + np.array([0.8, 0.0, 0.0], np.float32), axis=1)
+    skewed = noise + np.array([0.8, 3.0, 3.0], np.float32)
+    fit = fit_logit_bias(skewed, labels)
+    np.testing.assert_allclose(fit.bias, [0.0, -3.0, -3.0], atol=0.125)
+    assert fit.miou_after > 0.99
+    monkeypatch.setattr(calibration, "MAX_COARSE", 0)  # coordinate search alone
+    assert fit_logit_bias(skewed, labels).miou_after < 0.9

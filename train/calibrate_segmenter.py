@@ -4,11 +4,12 @@
         --checkpoint runs/segmenter/N/best.pt                     # → runs/segmenter/N/calibrated.pt
     python train/calibrate_segmenter.py --config C.yaml --checkpoint X.pt --set S.txt --out Y.pt
 
-Runs the checkpoint's net on ``data.val`` (or ``--set``), picks the bias that maximises the mean
-IoU of the validation pixels (:mod:`gaitnet.training.calibration`) and writes a copy of the
-checkpoint whose ``config.model.logit_bias`` holds it (added to any bias it had), with a
-``calibration`` entry (set, bias, mIoU before and after). Score it on ``eval.sets`` with
-``train/segmenter.py --eval-only --checkpoint`` and export it with ``export/to_onnx.py``.
+Runs the checkpoint's net (on ``train.device``) on ``data.val`` (or ``--set``), picks the bias
+that maximises the mean IoU of those pixels (:mod:`gaitnet.training.calibration`; every class
+must occur in the set) and writes a copy of the checkpoint whose ``config.model.logit_bias``
+holds it (added to any bias it had), with a ``calibration`` entry (set, bias, mIoU before and
+after). Score it on ``eval.sets`` with ``train/segmenter.py --eval-only --checkpoint`` (which
+writes ``eval_calibrated.json`` beside it) and export it with ``export/to_onnx.py``.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from gaitnet.segmentation.segmenter_net import model_input
 from gaitnet.training.calibration import PixelSample, fit_logit_bias
 from gaitnet.training.checkpoint import load_checkpoint, load_state, save_checkpoint
 from gaitnet.training.logs import close_logging, setup_logging
+from gaitnet.training.runs import resolve_device
 from gaitnet.training.scripts import ScriptParser
 from gaitnet.training.segmenter import (
     SegmenterTrainingConfig,
@@ -51,20 +53,29 @@ def main(args: argparse.Namespace) -> int:
     if out.resolve() == source.resolve():
         raise InputError(f"--out {out} would overwrite the checkpoint it calibrates")
     setup_logging(0)
+    device = resolve_device(cfg.train.device)
     ckpt = load_checkpoint(source)
     cfg = with_checkpoint_model(cfg, ckpt, source)
-    model = build_model(architecture_only(cfg.model))
+    model = build_model(architecture_only(cfg.model))  # its weights come from the checkpoint
     load_state(model, ckpt["model"], source, "model")
-    model.eval()
+    model.to(device).eval()
     data_set = Path(args.set) if args.set else cfg.data.val
     ds = build_dataset(data_set, cfg, augment=False)
     sample = PixelSample(cfg.model.num_classes, cfg.loss.ignore_index, args.max_pixels)
     loader = DataLoader(ds, cfg.eval.batch_size, shuffle=False, num_workers=cfg.data.num_workers)
     with torch.no_grad():
         for batch in tqdm(loader, desc=f"calibrate on {set_name(data_set)}", mininterval=2.0):
-            logits = model(model_input(cfg.model.arch, batch["rgb"], batch["hha"]))
-            sample.add(logits.numpy(), batch["label"].numpy())
+            x = model_input(cfg.model.arch, batch["rgb"], batch["hha"]).to(device)
+            sample.add(model(x).cpu().numpy(), batch["label"].numpy())
     fit = fit_logit_bias(*sample.arrays())
+    if fit.at_grid_edge:
+        logger.warning(
+            "%s: the fitted bias %s reaches the end of the search grid; the net is far from "
+            "calibrated on %s (check the set and the checkpoint)",
+            source,
+            list(fit.bias),
+            data_set,
+        )
     bias = [round(old + new, 6) for old, new in zip(model.logit_bias, fit.bias, strict=True)]
     calibrated: dict[str, Any] = dict(ckpt)
     config = dict(ckpt["config"])
@@ -78,6 +89,7 @@ def main(args: argparse.Namespace) -> int:
         "logit_bias": bias,
         "miou_before": fit.miou_before,
         "miou_after": fit.miou_after,
+        "at_grid_edge": fit.at_grid_edge,
         "source": str(source),
     }
     save_checkpoint(calibrated, out)

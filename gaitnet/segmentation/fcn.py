@@ -261,15 +261,15 @@ def _fuse(up: torch.Tensor, skip: torch.Tensor, offsets: tuple[int, int]) -> tor
     return up[:, :, a : a + h, a : a + w] + skip[:, :, b : b + h, b : b + w]
 
 
-def check_output_stride(stride: Any) -> int:
+def check_output_stride(stride: Any, name: str = "segmenter output_stride") -> int:
+    """``stride`` as an int of :data:`OUTPUT_STRIDES`, or a ConfigError naming ``name``."""
     if isinstance(stride, bool) or stride not in OUTPUT_STRIDES:
-        raise ConfigError(
-            f"segmenter output_stride must be one of {list(OUTPUT_STRIDES)}, got {stride!r}"
-        )
+        raise ConfigError(f"{name} must be one of {list(OUTPUT_STRIDES)}, got {stride!r}")
     return int(stride)
 
 
 def check_padding(padding: Any) -> str:
+    """``padding`` if it is one of :data:`PADDINGS`, else a ConfigError."""
     if padding not in PADDINGS:
         raise ConfigError(f"segmenter padding must be one of {list(PADDINGS)}, got {padding!r}")
     return padding

@@ -9,8 +9,8 @@ with a dynamic batch and a fixed frame size (640 × 480 by default). The export
 refused, and nothing is written, unless onnxruntime reproduces PyTorch within ``atol`` (max
 absolute logit difference, default 1e-4) on random inputs; the file is written atomically.
 What a runtime must know is stored in the model's ``metadata_props`` (:data:`METADATA_KEYS`):
-``gaitnet.model`` = ``segmenter``, the arch, width, input scale, padding, class names, the
-input's channels and the normalisation applied inside the graph.
+``gaitnet.model`` = ``segmenter``, the arch, width, input scale, padding, output stride, logit
+bias, class names, the input's channels and the normalisation applied inside the graph.
 
 :class:`OnnxSegmenter` runs such a file on explicit providers with a set thread count; a file
 that is missing, unreadable or not a gaitnet segmenter, and an input of the wrong rank, shape or

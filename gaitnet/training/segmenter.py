@@ -40,7 +40,7 @@ from gaitnet.evaluation.segmentation import confusion_matrix, segmentation_score
 from gaitnet.segmentation.augment import AugmentParams
 from gaitnet.segmentation.channels import ARCHS
 from gaitnet.segmentation.dataset import SegmentationFolder
-from gaitnet.segmentation.fcn import OUTPUT_STRIDES, PADDINGS
+from gaitnet.segmentation.fcn import PADDINGS, check_output_stride
 from gaitnet.segmentation.focal_loss import FocalLoss
 from gaitnet.segmentation.folder_files import read_split
 from gaitnet.segmentation.hha import hha_stride
@@ -119,23 +119,19 @@ class ModelConfig:
             raise ValueError(f"model.arch must be one of {ARCHS}, got {self.arch!r}")
         if self.padding not in PADDINGS:
             raise ValueError(f"model.padding must be one of {PADDINGS}, got {self.padding!r}")
-        if isinstance(self.output_stride, bool) or self.output_stride not in OUTPUT_STRIDES:
-            raise ValueError(
-                f"model.output_stride must be one of {list(OUTPUT_STRIDES)}, got "
-                f"{self.output_stride!r}"
-            )
         check_range("model.width", self.width, 1e-3, 1.0)
         check_range("model.input_scale", self.input_scale, 0.05, 1.0)
         check_int_range("model.num_classes", self.num_classes, 2, 255)
+        try:
+            check_output_stride(self.output_stride, "model.output_stride")
+            check_logit_bias(self.logit_bias, self.num_classes, "model.logit_bias")
+        except ConfigError as exc:
+            raise ValueError(str(exc)) from exc
         if self.vgg16_weights is not None and self.width != 1.0:
             raise ValueError(
                 "model.vgg16_weights needs model.width 1 (ImageNet weights fit the published "
                 f"width only), got width {self.width:g}"
             )
-        try:
-            check_logit_bias(self.logit_bias, self.num_classes, "model.logit_bias")
-        except ConfigError as exc:
-            raise ValueError(str(exc)) from exc
         if self.vgg16_weights is not None and self.init_checkpoint is not None:
             raise ValueError(
                 "model.vgg16_weights and model.init_checkpoint exclude each other (both "
