@@ -285,6 +285,21 @@ def test_calibration_writes_the_bias_that_maximises_val_miou(tmp_path, straight:
             ["--config", config, "--checkpoint", str(best), "--out", str(best)]))  # fmt: skip
 
 
+def test_calibration_bad_input_is_one_line(tmp_path, straight: Path, capsys) -> None:
+    config = str(straight / "config.yaml")
+    missing = ["--config", config, "--checkpoint", str(tmp_path / "none.pt")]
+    assert calibrate.cli(missing) == 1
+    assert calibrate.cli(["--config", config]) == 1  # no --checkpoint
+    assert calibrate.cli([*missing[:2], "--checkpoint", str(straight / "best.pt"),
+                          "--set", str(tmp_path / "nowhere.txt"),
+                          "--out", str(tmp_path / "c.pt")]) == 1  # fmt: skip
+    lines = capsys.readouterr().err.strip().splitlines()
+    errors = [line for line in lines if line.startswith("error: ")]
+    assert len(errors) == 3 and "Traceback" not in "\n".join(lines)
+    assert "none.pt" in errors[0] and "--checkpoint" in errors[1] and "nowhere.txt" in errors[2]
+    assert not (tmp_path / "c.pt").exists()
+
+
 def test_init_checkpoint_starts_from_a_trained_net(straight: Path, tmp_path) -> None:
     """``model.init_checkpoint`` copies the trained layers (the same net: the same logits), a
     finer ``output_stride`` keeps its new score layers at zero; mismatches are named."""
