@@ -457,3 +457,19 @@ def test_loader_keys_reach_the_loaders(tmp_path, frames, monkeypatch) -> None:
     assert _run("--config", str(config)) == 0
     # train (6 frames, batch 3), val (2 frames, eval_batch_size 1), final eval (batch 5)
     assert made == [(6, 3, 2), (2, 1, 2), (2, 5, 2)]
+
+
+def test_architecture_comes_from_the_checkpoint(tmp_path) -> None:
+    """with_checkpoint_model (gaitnet.training.checkpoint): the model keys of the checkpoint's
+    config replace the config's; a checkpoint without usable ones is a one-line error."""
+    from gaitnet.config import config_to_dict
+    from gaitnet.training.checkpoint import CheckpointError
+    from gaitnet.training.segmenter import with_checkpoint_model
+
+    cfg = _cfg("model.width=0.0625")
+    theirs = {**config_to_dict(cfg.model), "output_stride": 4, "width": 0.125}
+    out = with_checkpoint_model(cfg, {"config": {"model": theirs}}, tmp_path / "a.pt")
+    assert (out.model.output_stride, out.model.width, out.name) == (4, 0.125, cfg.name)
+    for bad in ({}, {"config": {"model": {"arch": "sonar"}}}):
+        with pytest.raises(CheckpointError, match=r"a.pt: no usable segmenter architecture"):
+            with_checkpoint_model(cfg, bad, tmp_path / "a.pt")

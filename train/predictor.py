@@ -23,7 +23,6 @@ import logging
 import math
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -31,8 +30,8 @@ import torch
 from torch.utils.data import DataLoader, DistributedSampler
 from tqdm import tqdm
 
-from gaitnet.config import config_to_dict, dump_config, load_config, parse_config
-from gaitnet.errors import USER_ERRORS, ConfigError, InputError, user_error_message
+from gaitnet.config import config_to_dict, dump_config, load_config
+from gaitnet.errors import USER_ERRORS, InputError, user_error_message
 from gaitnet.evaluation.metrics import mean_angle_error, mpjpe_per_horizon
 from gaitnet.io.atomic import atomic_write_text
 from gaitnet.motion.evaluation import (
@@ -50,6 +49,7 @@ from gaitnet.training.checkpoint import (
     load_checkpoint,
     load_state,
     save_checkpoint,
+    with_checkpoint_model,
 )
 from gaitnet.training.distributed import (
     all_reduce_sum,
@@ -72,6 +72,7 @@ from gaitnet.training.scripts import ScriptParser
 from gaitnet.training.seeding import restore_rng_state, rng_state, seed_everything
 
 logger = logging.getLogger("train.predictor")
+ARCH = "DCT-GCN architecture"  # what a checkpoint's config.model is, in errors
 METRICS = (
     "lr",
     "train/loss",
@@ -216,21 +217,6 @@ def _device(name: str) -> torch.device:
     return device
 
 
-def _with_checkpoint_architecture(
-    cfg: PredictorTrainingConfig, ckpt: dict[str, Any], path: str | Path
-) -> PredictorTrainingConfig:
-    """Architecture keys (``model.*``) come from the checkpoint, as nanoGPT does on resume."""
-    try:
-        model = parse_config(PredictorConfig, ckpt["config"]["model"], f"{path} (config)")
-    except (ConfigError, KeyError, TypeError) as exc:
-        raise CheckpointError(
-            f"checkpoint {path}: no usable DCT-GCN architecture in its config ({exc})"
-        ) from exc
-    if model != cfg.model:
-        logger.warning("model keys taken from %s: %s (config had %s)", path, model, cfg.model)
-    return replace(cfg, model=model)
-
-
 def _restore_rng(ckpt: dict[str, Any], rank: int, path: Path, loader_gen: torch.Generator) -> None:
     states = ckpt.get("rng")
     if not isinstance(states, list) or rank >= len(states):
@@ -263,11 +249,11 @@ def main(args: argparse.Namespace) -> int:
         if args.resume or args.checkpoint is not None:
             raise InputError("--init starts a fresh run: it excludes --resume and --checkpoint")
         init = load_checkpoint(args.init)
-        cfg = _with_checkpoint_architecture(cfg, init, args.init)
+        cfg = with_checkpoint_model(cfg, init, args.init, PredictorConfig, ARCH)
     if args.resume:
         ckpt_path = run_dir / "last.pt" if args.checkpoint is None else Path(args.checkpoint)
         ckpt = load_checkpoint(ckpt_path)
-        cfg = _with_checkpoint_architecture(cfg, ckpt, ckpt_path)
+        cfg = with_checkpoint_model(cfg, ckpt, ckpt_path, PredictorConfig, ARCH)
     elif args.checkpoint is not None:
         raise InputError("--checkpoint goes with --resume or --eval-only")
     elif (run_dir / "last.pt").exists():
@@ -423,7 +409,7 @@ def eval_only(cfg: PredictorTrainingConfig, args: argparse.Namespace, device: to
     extra = {"config": config_to_dict(cfg)}
     if args.checkpoint is not None:
         ckpt = load_checkpoint(args.checkpoint)
-        cfg = _with_checkpoint_architecture(cfg, ckpt, args.checkpoint)
+        cfg = with_checkpoint_model(cfg, ckpt, args.checkpoint, PredictorConfig, ARCH)
         model = DCTGCN(cfg.model).to(device)
         load_state(model, ckpt["model"], args.checkpoint, "model")
         predictor = torch_predictor(model, device=device, batch_size=cfg.eval.batch_size)

@@ -21,6 +21,8 @@ model, optimizer or scheduler and turns a mismatch (another architecture) into t
 
 from __future__ import annotations
 
+import dataclasses
+import logging
 import math
 import pickle
 import re
@@ -28,11 +30,12 @@ import subprocess
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeVar
 
 import torch
 
-from gaitnet.errors import InputError, one_line
+from gaitnet.config import parse_config
+from gaitnet.errors import ConfigError, InputError, one_line
 from gaitnet.io.atomic import atomic_save
 
 __all__ = [
@@ -43,7 +46,11 @@ __all__ = [
     "load_checkpoint",
     "load_state",
     "save_checkpoint",
+    "with_checkpoint_model",
 ]
+
+logger = logging.getLogger(__name__)
+_Config = TypeVar("_Config")
 
 #: Keys every checkpoint written by the training scripts has.
 CHECKPOINT_KEYS: tuple[str, ...] = (
@@ -178,3 +185,23 @@ def load_state(target: _Stateful, state: Any, path: str | Path, what: str) -> No
             f"checkpoint {path}: its {what} state does not fit "
             f"(another architecture?): {one_line(exc, limit=300)}"
         ) from exc
+
+
+def with_checkpoint_model(
+    cfg: _Config, ckpt: Mapping[str, Any], path: str | Path, model_type: type, what: str
+) -> _Config:
+    """The training config ``cfg`` with its architecture keys (``model.*``) from the checkpoint
+    ``ckpt`` read from ``path``, as nanoGPT does on resume: ``ckpt["config"]["model"]`` parsed
+    as ``model_type``. A checkpoint without a usable one is a :class:`CheckpointError` naming
+    ``what`` (e.g. "segmenter architecture"); keys that differ from ``cfg``'s are logged."""
+    try:
+        model = parse_config(model_type, ckpt["config"]["model"], f"{path} (config)")
+    except (ConfigError, KeyError, TypeError) as exc:
+        raise CheckpointError(f"checkpoint {path}: no usable {what} in its config ({exc})") from exc
+    current = cfg.model  # type: ignore[attr-defined]
+    if model != current:
+        logger.warning("model keys taken from %s: %s (config had %s)", path, model, current)
+    try:
+        return dataclasses.replace(cfg, model=model)  # type: ignore[type-var]
+    except ValueError as exc:
+        raise ConfigError(f"{path} (config): {exc}") from exc

@@ -34,7 +34,6 @@ import numpy as np
 import torch
 
 from gaitnet.checks import check_int_range, check_range
-from gaitnet.config import parse_config
 from gaitnet.errors import ConfigError, InputError
 from gaitnet.evaluation.segmentation import confusion_matrix, segmentation_scores
 from gaitnet.segmentation.augment import AugmentParams
@@ -50,7 +49,8 @@ from gaitnet.segmentation.segmenter_net import (
     check_logit_bias,
     segmenter_from_checkpoint,
 )
-from gaitnet.training.checkpoint import CheckpointError, load_checkpoint
+from gaitnet.training.checkpoint import load_checkpoint
+from gaitnet.training.checkpoint import with_checkpoint_model as checkpoint_model
 from gaitnet.training.predictor import DEVICE_PATTERN
 
 __all__ = [
@@ -335,20 +335,9 @@ def build_model(cfg: ModelConfig) -> SegmenterNet:
 def with_checkpoint_model(
     cfg: SegmenterTrainingConfig, ckpt: dict[str, Any], path: Path
 ) -> SegmenterTrainingConfig:
-    """``cfg`` with its architecture keys (``model.*``) from the checkpoint ``ckpt`` read from
-    ``path`` (as nanoGPT does on resume)."""
-    try:
-        model = parse_config(ModelConfig, ckpt["config"]["model"], f"{path} (config)")
-    except (ConfigError, KeyError, TypeError) as exc:
-        raise CheckpointError(
-            f"checkpoint {path}: no usable segmenter architecture in its config ({exc})"
-        ) from exc
-    if model != cfg.model:
-        logger.warning("model keys taken from %s: %s (config had %s)", path, model, cfg.model)
-    try:
-        return replace(cfg, model=model)
-    except ValueError as exc:
-        raise ConfigError(f"{path} (config): {exc}") from exc
+    """``cfg`` with the segmenter architecture of the checkpoint ``ckpt`` read from ``path``
+    (:func:`gaitnet.training.checkpoint.with_checkpoint_model`)."""
+    return checkpoint_model(cfg, ckpt, path, ModelConfig, "segmenter architecture")
 
 
 def architecture_only(cfg: ModelConfig) -> ModelConfig:
