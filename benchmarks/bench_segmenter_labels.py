@@ -12,7 +12,7 @@ Both are scored by ``gaitnet evaluate``'s own code
 (:func:`~gaitnet.evaluation.label_maps.evaluate_label_maps`).
 
     python benchmarks/bench_segmenter_labels.py SET [SET ...] [--model X.onnx]
-        [--min-foot-height 0.01] [--json OUT.json]
+        [--min-foot-height 0.01] [--flip-average] [--json OUT.json]
 """
 
 from __future__ import annotations
@@ -73,11 +73,22 @@ def main() -> None:
         default=FootKeypointParams().min_foot_height_m,
         help="feet.min_foot_height_m [m]",
     )
+    ap.add_argument(
+        "--flip-average",
+        action="store_true",
+        help="average the logits over each frame and its mirror image (gaitnet segment "
+        "--flip-average)",
+    )
     ap.add_argument("--json", type=Path, default=None, help="also write the scores here")
     args = ap.parse_args()
-    net = OnnxSegmenter(args.model or default_segmenter_path(), threads=1)
+    net = OnnxSegmenter(
+        args.model or default_segmenter_path(), threads=1, flip_average=args.flip_average
+    )
     params = replace(FootKeypointParams(), min_foot_height_m=args.min_foot_height)
-    print(f"model {net.path}; min_foot_height_m {params.min_foot_height_m}")
+    print(
+        f"model {net.path}; min_foot_height_m {params.min_foot_height_m}; "
+        f"flip_average {net.flip_average}"
+    )
     print(f"{'set':10s} {'labels':15s} {'frames':>6s} {'pix acc':>8s} {'mIoU':>7s} "
           f"{'FW-IoU':>7s} {'bg':>7s} {'foot':>7s} {'leg':>7s}")  # fmt: skip
     results = {}

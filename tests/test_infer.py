@@ -167,6 +167,33 @@ def test_workers_act_and_do_not_change_the_result(
     np.testing.assert_array_equal(one.t_ns, three.t_ns)
 
 
+def test_models_keys_reach_the_segmenter(
+    tmp_path: Path, tiny_sim_session: Path, tiny_segmenter: Path, monkeypatch, capsys
+) -> None:
+    """``models.threads`` and ``models.segmenter_flip_average`` are the segmenter's settings
+    in ``gaitnet infer`` (the option's effect: test_segmentation_onnx.py)."""
+    import gaitnet.segmentation.onnx_runtime as onnx_runtime
+    from gaitnet.errors import InputError
+
+    made = []
+
+    class Spy(onnx_runtime.OnnxSegmenter):
+        def __init__(self, *args, **kwargs) -> None:
+            super().__init__(*args, **kwargs)
+            made.append(self)
+            raise InputError("stop here")
+
+    monkeypatch.setattr(onnx_runtime, "OnnxSegmenter", Spy)
+    args = ["infer", str(tiny_sim_session), "--out", str(tmp_path / "o")]
+    args += ["--segmenter", str(tiny_segmenter)]
+    assert main([*args, "models.threads=2", "models.segmenter_flip_average=true"]) == 1
+    assert "stop here" in capsys.readouterr().err
+    assert made[-1].flip_average
+    assert made[-1].session.get_session_options().intra_op_num_threads == 2
+    assert main(args) == 1
+    assert not made[-1].flip_average
+
+
 def test_feet_measured_on_the_filter_pose_end_on_the_smoothed_one(
     tiny_sim_session: Path, tiny_segmenter: Path, monkeypatch
 ) -> None:

@@ -17,7 +17,11 @@ from gaitnet.cli import main
 from gaitnet.io import open_session
 from gaitnet.io.trajectory import read_tum
 from gaitnet.segmentation.hha import HhaParams, find_floor, hha_encode
-from gaitnet.segmentation.onnx_runtime import OnnxSegmenter, export_segmenter_onnx
+from gaitnet.segmentation.onnx_runtime import (
+    OnnxSegmenter,
+    argmax_classes,
+    export_segmenter_onnx,
+)
 from gaitnet.segmentation.postprocess import foot_keypoints, kept_feet_labels
 from gaitnet.segmentation.segment_session import (
     KEYPOINT_COLUMNS,
@@ -43,16 +47,21 @@ def tiny_model(tmp_path_factory, tiny_sim_session: Path) -> Path:
     return path
 
 
-def _middle_frame_by_hand(session, model_path: Path):
+def _middle_frame_by_hand(session, model_path: Path, flip_average: bool = False):
     """The session's middle frame and, computed step by step as ``gaitnet segment`` does, the
-    network's labels for it, its gravity and its floor plane."""
+    network's labels for it (with ``flip_average``: the arg-max of the mean of the logits of
+    the frame and, mirrored back, of the mirrored frame), its gravity and its floor plane."""
     K = session.calibration.color.K
     frame = session.frame(len(session) // 2)
     gravity = accelerometer_gravity_C(session.imu, session.calibration.T_CfromI, frame.t_ns, 1.0)
     plane = find_floor(frame.depth_m, K, -gravity, HhaParams())
     hha = hha_encode(frame.depth_m, K, gravity, HhaParams(), plane=plane)
-    raw = OnnxSegmenter(model_path).predict(network_input("fusion", frame.rgb, hha))[0]
-    return frame, raw, gravity, plane
+    x = network_input("fusion", frame.rgb, hha)
+    net = OnnxSegmenter(model_path)
+    logits = net(x)
+    if flip_average:
+        logits = (logits + net(np.ascontiguousarray(x[..., ::-1]))[..., ::-1]) / 2
+    return frame, argmax_classes(logits)[0], gravity, plane
 
 
 def test_segment_matches_a_per_frame_computation(
@@ -98,6 +107,20 @@ def test_raw_labels_are_the_networks_own(
     frame, raw, _, _ = _middle_frame_by_hand(open_session(tiny_sim_session), tiny_model)
     written = cv2.imread(str(out / "labels" / f"{frame.t_ns}.png"), cv2.IMREAD_UNCHANGED)
     np.testing.assert_array_equal(written, raw)
+
+
+def test_flip_average_labels_are_the_mirror_averaged_networks(
+    tmp_path: Path, tiny_sim_session: Path, tiny_model: Path
+) -> None:
+    out = tmp_path / "seg"
+    args = ["segment", str(tiny_sim_session), "--out", str(out), "--model", str(tiny_model)]
+    assert main([*args, "--raw-labels", "--flip-average"]) == 0
+    session = open_session(tiny_sim_session)
+    frame, averaged, _, _ = _middle_frame_by_hand(session, tiny_model, flip_average=True)
+    written = cv2.imread(str(out / "labels" / f"{frame.t_ns}.png"), cv2.IMREAD_UNCHANGED)
+    np.testing.assert_array_equal(written, averaged)
+    _, plain, _, _ = _middle_frame_by_hand(session, tiny_model)
+    assert (written != plain).any()  # the option acts
 
 
 def test_accelerometer_gravity_follows_the_true_attitude(tiny_sim_session: Path) -> None:

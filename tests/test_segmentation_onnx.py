@@ -122,6 +122,23 @@ def test_export_refused_when_parity_fails(tmp_path: Path, monkeypatch) -> None:
     assert OnnxSegmenter(path).arch == "rgb"
 
 
+def test_flip_average_is_the_mean_over_the_mirrored_frame(exported) -> None:
+    _, path, _ = exported
+    plain = OnnxSegmenter(path)
+    flip = OnnxSegmenter(path, flip_average=True)
+    x = np.random.default_rng(3).random((2, 6, H, W), dtype=np.float32)
+    mirrored = plain(np.ascontiguousarray(x[..., ::-1]))[..., ::-1]
+    np.testing.assert_allclose(flip(x), (plain(x) + mirrored) / 2, atol=1e-6)
+    assert np.abs(flip(x) - plain(x)).max() > 1e-3  # the option acts
+    # a frame that is its own mirror image gets logits that are their own mirror image
+    symmetric = (x + x[..., ::-1]) / 2
+    out = flip(symmetric)
+    np.testing.assert_allclose(out, out[..., ::-1], atol=1e-6)
+    # bad input is still the one-line error, naming the file
+    with pytest.raises(OnnxInputError, match=re.escape(str(path))):
+        flip(x[:, :3])
+
+
 def _one_line(exc: pytest.ExceptionInfo, path: Path) -> None:
     text = str(exc.value)
     assert "\n" not in text and str(path) in text

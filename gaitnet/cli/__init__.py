@@ -224,6 +224,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="write the network's own label maps, not the post-processed ones (feet kept by "
         "the depth checks)",
     )
+    p.add_argument(
+        "--flip-average",
+        action="store_true",
+        help="average the network's logits over each frame and its mirror image (more "
+        "accurate, twice the network's time; docs/segmenter.md)",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.set_defaults(func=_cmd_segment)
 

@@ -191,7 +191,11 @@ def _cmd_segment(args: argparse.Namespace) -> int:
 
     check_output_folder(args.out, args.overwrite)
     session = open_session(args.session)
-    model = OnnxSegmenter(args.model or default_segmenter_path(), threads=args.threads)
+    model = OnnxSegmenter(
+        args.model or default_segmenter_path(),
+        threads=args.threads,
+        flip_average=args.flip_average,
+    )
     result = segment_session(
         session,
         model,
@@ -233,7 +237,9 @@ def _cmd_infer(args: argparse.Namespace) -> int:
 
     threads = cfg.models.threads
     segmenter = OnnxSegmenter(
-        args.segmenter or cfg.models.segmenter or default_segmenter_path(), threads=threads
+        args.segmenter or cfg.models.segmenter or default_segmenter_path(),
+        threads=threads,
+        flip_average=cfg.models.segmenter_flip_average,
     )
     predictor = OnnxPredictor(
         args.predictor or cfg.models.predictor or default_predictor_path(), threads=threads

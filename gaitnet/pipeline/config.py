@@ -65,6 +65,9 @@ class ModelParams:
     """Motion predictor ONNX file (``export/to_onnx.py predictor``)."""
     threads: int = 1
     """onnxruntime intra-op threads of each network (0: onnxruntime's default)."""
+    segmenter_flip_average: bool = False
+    """Average the segmenter's logits over each frame and its mirror image (twice the
+    network's work; docs/segmenter.md, *Mirror averaging*)."""
 
     def __post_init__(self) -> None:
         check_int_range("models.threads", self.threads, 0, 64)

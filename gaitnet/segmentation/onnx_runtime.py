@@ -169,6 +169,11 @@ class OnnxSegmenter:
     ``threads`` sets onnxruntime's intra-op threads (0: its default), ``providers`` the
     execution providers in order. :attr:`arch`, :attr:`channels`, :attr:`classes`,
     :attr:`input_scale` and the frame size (:attr:`height`, :attr:`width`) come from the file.
+
+    ``flip_average``: the logits are the mean of the network's on the frame and, mirrored
+    back, on the frame mirrored left to right (test-time augmentation; the classes have no
+    side and training mirrors frames, so both are the network's view of the same scene). It
+    doubles the network's work; docs/segmenter.md has what it gains.
     """
 
     def __init__(
@@ -176,8 +181,10 @@ class OnnxSegmenter:
         path: str | Path,
         threads: int = 1,
         providers: Sequence[str] = ("CPUExecutionProvider",),
+        flip_average: bool = False,
     ) -> None:
         self.path = Path(path)
+        self.flip_average = bool(flip_average)
         self.session = open_session(self.path, threads, providers)
         self.metadata = model_metadata(self.session)
         if self.metadata.get("gaitnet.model") != "segmenter":
@@ -243,13 +250,20 @@ class OnnxSegmenter:
         return d if isinstance(d, int) else None
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
-        """Logits (batch, classes, H, W) float32 for ``x`` (batch, C, H, W) in [0, 1]."""
+        """Logits (batch, classes, H, W) float32 for ``x`` (batch, C, H, W) in [0, 1] (with
+        :attr:`flip_average`, the mean over the frame and its mirror image, in one run)."""
         feed = check_input(
             x, self.path, self.input_name, self.input_shape, labels=("batch", "C", "H", "W")
         )
+        batch = feed.shape[0]
+        if self.flip_average:
+            feed = np.concatenate([feed, feed[..., ::-1]])
         (logits,) = run_session(
             self.session, self.path, {self.input_name: feed}, [self.output_name]
         )
+        if self.flip_average:
+            logits = logits[:batch] + logits[batch:, ..., ::-1]
+            logits *= np.float32(0.5)
         return logits
 
     def predict(self, x: np.ndarray) -> np.ndarray:
