@@ -12,6 +12,7 @@ import socket
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -20,6 +21,7 @@ import yaml
 
 from gaitnet.config import config_keys, load_config
 from gaitnet.errors import ConfigError, GaitnetError, InputError
+from gaitnet.segmentation.dataset import SegmentationFolder
 from gaitnet.segmentation.focal_loss import FocalLoss
 from gaitnet.sim.config import SimConfig
 from gaitnet.sim.dataset import simulate_dataset
@@ -33,6 +35,7 @@ from gaitnet.training.segmenter import (
     build_model,
     build_optimizer,
     build_scheduler,
+    build_training_set,
     resolve_set,
     scores_of,
 )
@@ -382,6 +385,32 @@ def test_data_keys_and_sets(frames: Path) -> None:
     no_aug = _cfg("data.augment=null")
     assert build_dataset(cfg.data.train, no_aug, augment=True).augment is None
     assert build_dataset(frames, _cfg("data.cache_hha=false"), False).cache_hha is False
+
+
+def test_extra_training_sets_join_the_first(frames: Path, monkeypatch) -> None:
+    import gaitnet.training.segmenter as seg
+
+    one = _cfg(f"data.train={frames / 'train.txt'}")
+    assert isinstance(build_training_set(one, seed=5), SegmentationFolder)
+    two = _cfg(f"data.train={frames / 'train.txt'}", f"data.train_extra=[{frames / 'val.txt'}]")
+    joined = build_training_set(two, seed=5)
+    assert len(joined) == 6 + 2
+    first, extra = joined.datasets
+    assert (first.seed, extra.seed) == (5, 6)  # each set its own augmentation draws
+    assert extra.augment == two.data.augment and extra.ids == ["000006", "000007"]
+    joined.set_epoch(3)
+    assert first.epoch == extra.epoch == 3
+    # frames of another size cannot share a batch unless a fixed crop makes them one size
+    sizes = iter([(48, 64), (60, 80)])
+
+    def sized(path, cfg, augment, seed=0):
+        h, w = next(sizes)
+        return SimpleNamespace(intrinsics=SimpleNamespace(height=h, width=w))
+
+    monkeypatch.setattr(seg, "build_dataset", sized)
+    uncropped = _cfg("data.augment.crop_height=0", f"data.train_extra=[{frames / 'val.txt'}]")
+    with pytest.raises(InputError, match="data.augment.crop_height"):
+        build_training_set(uncropped)
 
 
 def test_train_keys_act(tmp_path, frames) -> None:

@@ -67,6 +67,7 @@ from gaitnet.training.segmenter import (
     build_model,
     build_optimizer,
     build_scheduler,
+    build_training_set,
     confusion_of,
     scores_of,
     set_name,
@@ -302,7 +303,7 @@ def train(
         )
     seed_everything(cfg.train.seed, info.rank)
     loader_gen = torch.Generator().manual_seed(cfg.train.seed + info.rank)
-    train_ds = build_dataset(cfg.data.train, cfg, augment=True, seed=cfg.train.seed)
+    train_ds = build_training_set(cfg, seed=cfg.train.seed)
     val_ds = build_dataset(cfg.data.val, cfg, augment=False)
     base_sampler = DistributedSampler(
         train_ds, info.world_size, info.rank, shuffle=True, seed=cfg.train.seed, drop_last=True

@@ -65,6 +65,7 @@ __all__ = [
     "architecture_only",
     "with_checkpoint_model",
     "build_dataset",
+    "build_training_set",
     "build_loss",
     "build_model",
     "build_optimizer",
@@ -89,6 +90,7 @@ class DataConfig:
 
     train: Path = Path("data/cache/seg/train/train.txt")
     val: Path = Path("data/cache/seg/val/val.txt")
+    train_extra: tuple[Path, ...] = ()
     augment: AugmentParams | None = field(default_factory=AugmentParams)
     cache_hha: bool = True
     num_workers: int = 0
@@ -97,6 +99,11 @@ class DataConfig:
         for name in ("train", "val"):
             if not str(getattr(self, name)).strip():
                 raise ValueError(f"data.{name} must name a split file or a folder")
+
+    @property
+    def train_sets(self) -> tuple[Path, ...]:
+        """Every training set: ``train``, then ``train_extra``."""
+        return (self.train, *self.train_extra)
         check_int_range("data.num_workers", self.num_workers, 0, 256)
 
 
@@ -308,6 +315,43 @@ def build_dataset(
         seed=seed,
         hha_stride=hha_stride(cfg.model.input_scale),
     )
+
+
+class TrainingSets(torch.utils.data.ConcatDataset):
+    """Several training sets as one (``data.train`` and ``data.train_extra``); the augmentation
+    epoch reaches each (:meth:`SegmentationFolder.set_epoch`)."""
+
+    def set_epoch(self, epoch: int) -> None:
+        for ds in self.datasets:
+            ds.set_epoch(epoch)
+
+
+def build_training_set(
+    cfg: SegmenterTrainingConfig, seed: int = 0
+) -> SegmentationFolder | TrainingSets:
+    """``data.train`` with ``data.augment``, joined by the sets of ``data.train_extra``; the
+    k-th set draws its augmentations from ``seed + k`` (the frames of two sets with the same
+    index are not augmented alike). Sets of different frame sizes need a fixed crop
+    (``data.augment.crop_height`` and ``crop_width``) to be batched together."""
+    sets = [
+        build_dataset(path, cfg, augment=True, seed=seed + k)
+        for k, path in enumerate(cfg.data.train_sets)
+    ]
+    if len(sets) == 1:
+        return sets[0]
+    aug = cfg.data.augment
+    cropped = aug is not None and aug.crop_height > 0 and aug.crop_width > 0
+    sizes = {(ds.intrinsics.height, ds.intrinsics.width) for ds in sets}
+    if len(sizes) > 1 and not cropped:
+        listing = ", ".join(
+            f"{path} ({ds.intrinsics.width}×{ds.intrinsics.height})"
+            for path, ds in zip(cfg.data.train_sets, sets, strict=True)
+        )
+        raise InputError(
+            f"data.train and data.train_extra have frames of different sizes ({listing}): "
+            "set data.augment.crop_height and crop_width to batch them together"
+        )
+    return TrainingSets(sets)
 
 
 # --------------------------------------------------------------------------- model, optim
