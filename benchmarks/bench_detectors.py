@@ -28,7 +28,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
-import argparse  # noqa: E402
 import csv  # noqa: E402
 import time  # noqa: E402
 from contextlib import contextmanager  # noqa: E402
@@ -42,6 +41,7 @@ from gaitnet.geometry.floor_plane import FloorParams, fit_floor_depth  # noqa: E
 from gaitnet.geometry.rotation import so3_exp, so3_log  # noqa: E402
 from gaitnet.io.session_folder import SessionFolder  # noqa: E402
 from gaitnet.io.trajectory import read_tum  # noqa: E402
+from gaitnet.training.scripts import ScriptParser  # noqa: E402
 from gaitnet.vio import tag_detectors  # noqa: E402
 from gaitnet.vio.apriltags import AprilTagParams, detect_board_pose  # noqa: E402
 from gaitnet.vio.feet import FootParams, detect_foot_candidates  # noqa: E402
@@ -368,7 +368,7 @@ def bench_stance(truths: list[Truth], fparams: FloorParams, params: FootParams) 
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = ScriptParser(description=__doc__.splitlines()[0])
     ap.add_argument("sessions", nargs="+")
     ap.add_argument("--parts", nargs="+", default=["tags", "floor", "feet", "stance"])
     ap.add_argument("--step", type=int, default=3, help="floor: every n-th frame")
@@ -394,4 +394,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

@@ -13,7 +13,6 @@ with a 3-D point. Seeds 900+ were used to choose the rule's defaults; report oth
 
 from __future__ import annotations
 
-import argparse
 import os
 from collections import Counter
 from pathlib import Path
@@ -27,6 +26,7 @@ from gaitnet.config import load_config  # noqa: E402
 from gaitnet.segmentation.postprocess import FootKeypointParams, foot_keypoints  # noqa: E402
 from gaitnet.sim.config import SimConfig  # noqa: E402
 from gaitnet.sim.dataset import simulate_frame  # noqa: E402
+from gaitnet.training.scripts import ScriptParser  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SIDES = {1: "left", 2: "right"}
@@ -55,7 +55,7 @@ def side_agreement(frames, params: FootKeypointParams, use_gravity: bool) -> dic
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = ScriptParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=50)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--config", type=Path, default=ROOT / "configs" / "sim" / "tiny.yaml")
@@ -81,4 +81,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

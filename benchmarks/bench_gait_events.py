@@ -15,7 +15,6 @@ separately as held out.
 
 from __future__ import annotations
 
-import argparse
 import csv
 from pathlib import Path
 
@@ -23,6 +22,7 @@ import numpy as np
 
 from gaitnet.pipeline.gait_events import SIDES, FootContact, detect_events, stances_from_contacts
 from gaitnet.pipeline.gait_parameters import stride_parameters
+from gaitnet.training.scripts import ScriptParser
 from gaitnet.vio.gait import strides_from_stances
 
 SEVEN = [0, 1, 2, 3, 4, 5, 6]  # joints.npz positions: [0, 1, 2, 4, 5, 7, 8, 10, 11] → first 7
@@ -140,7 +140,7 @@ def line(label: str, errors: list[float]) -> str:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = ScriptParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("root", type=Path, help="folder of simulated session folders")
     ap.add_argument("--noise-mm", type=float, nargs="+", default=[0.0])
     ap.add_argument("--select", nargs="*", default=["S1_", "S2_"])
@@ -177,4 +177,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

@@ -17,7 +17,6 @@ streams see the frame at half size; :func:`gaitnet.segmentation.hha.hha_stride`)
 
 from __future__ import annotations
 
-import argparse
 import os
 import time
 from pathlib import Path
@@ -31,12 +30,13 @@ from gaitnet.config import load_config  # noqa: E402
 from gaitnet.segmentation.hha import hha_decode, hha_encode  # noqa: E402
 from gaitnet.sim.config import SimConfig  # noqa: E402
 from gaitnet.sim.dataset import simulate_frame  # noqa: E402
+from gaitnet.training.scripts import ScriptParser  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = ScriptParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=8)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--seed", type=int, default=11)
@@ -84,4 +84,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

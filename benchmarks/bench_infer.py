@@ -24,7 +24,6 @@ pipeline reaches with a perfect segmenter); otherwise an ONNX file (default: the
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 import pickle
@@ -44,6 +43,7 @@ from gaitnet.pipeline.infer import default_predictor_path, observe, reconstruct
 from gaitnet.pipeline.outputs import write_infer_files
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
 from gaitnet.segmentation.segment_session import default_segmenter_path
+from gaitnet.training.scripts import ScriptParser
 
 
 class OracleSegmenter:
@@ -108,7 +108,7 @@ def _flat(metrics: dict) -> dict[str, float]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = ScriptParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("sessions", nargs="+", type=Path)
     ap.add_argument("--segmenter", default=None, help="ONNX file or 'oracle'")
     ap.add_argument("--predictor", default=None)
@@ -172,4 +172,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

@@ -27,7 +27,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
-import argparse  # noqa: E402
 import logging  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -39,6 +38,7 @@ from gaitnet.config import load_config  # noqa: E402
 from gaitnet.evaluation.metrics import match_times  # noqa: E402
 from gaitnet.io import open_session  # noqa: E402
 from gaitnet.io.trajectory import read_tum  # noqa: E402
+from gaitnet.training.scripts import ScriptParser  # noqa: E402
 from gaitnet.vio.config import VioConfig  # noqa: E402
 from gaitnet.vio.run import run_vio  # noqa: E402
 
@@ -63,7 +63,7 @@ def position_nees(result, session: Path) -> tuple[np.ndarray, np.ndarray, np.nda
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = ScriptParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("sessions", nargs="+", type=Path)
     parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE")
     parser.add_argument("--smoother", action="store_true", help="also run the smoother")
@@ -112,4 +112,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

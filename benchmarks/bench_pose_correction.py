@@ -32,7 +32,6 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import csv  # noqa: E402
-import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -58,6 +57,7 @@ from gaitnet.pipeline.pose_types import (  # noqa: E402
     PoseState,
     R_PfromSMPL,
 )
+from gaitnet.training.scripts import ScriptParser  # noqa: E402
 
 SEVEN = [0, 1, 2, 3, 4, 5, 6]
 # Error model of the drawn priors and measurements (stated in docs/pose-correction.md).
@@ -272,7 +272,7 @@ def predictor_priors(
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = ScriptParser(description=__doc__.splitlines()[0])
     ap.add_argument("sessions", type=Path, nargs="+", help="simulated session folders")
     ap.add_argument("--lbfgs-frames", type=int, default=40, help="frames for the slow baseline")
     ap.add_argument("--seed", type=int, default=0)
@@ -423,4 +423,6 @@ def closed_loop(
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

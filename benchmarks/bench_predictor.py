@@ -14,7 +14,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
-import argparse  # noqa: E402
 import platform  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -22,6 +21,7 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from gaitnet.motion.onnx_runtime import OnnxInputError, OnnxPredictor  # noqa: E402
+from gaitnet.training.scripts import ScriptParser  # noqa: E402
 
 
 def time_calls(predictor: OnnxPredictor, x: np.ndarray, n: int, warmup: int) -> np.ndarray:
@@ -37,7 +37,7 @@ def time_calls(predictor: OnnxPredictor, x: np.ndarray, n: int, warmup: int) -> 
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ScriptParser(description=__doc__.splitlines()[0])
     parser.add_argument("model", help="exported predictor .onnx")
     parser.add_argument("--n", type=int, default=2000, help="timed calls at batch 1")
     parser.add_argument("--warmup", type=int, default=100)
@@ -61,4 +61,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

@@ -46,6 +46,7 @@ from gaitnet.motion.onnx_runtime import OnnxPredictor  # noqa: E402
 from gaitnet.motion.prepared import load_prepared, prepare_walking_subset  # noqa: E402
 from gaitnet.motion.skeleton import builtin_skeleton  # noqa: E402
 from gaitnet.motion.windows import WalkingWindows  # noqa: E402
+from gaitnet.training.scripts import ScriptParser  # noqa: E402
 
 N_PAST, N_FUTURE = 10, 10
 
@@ -72,7 +73,7 @@ def _windows(args: argparse.Namespace) -> WalkingWindows:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ScriptParser(description=__doc__.splitlines()[0])
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("--prepared", help="prepared file of data/prepare_amass.py")
     source.add_argument("--amass-root", help="folder of AMASS-format clips (all evaluated)")
@@ -130,4 +131,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

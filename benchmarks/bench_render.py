@@ -37,6 +37,7 @@ from gaitnet.sim.floor import make_floor  # noqa: E402
 from gaitnet.sim.render import Lighting, render_frame  # noqa: E402
 from gaitnet.sim.scene import Appearance, BodyState, LegSegment, ShoeState  # noqa: E402
 from gaitnet.sim.sensor_model import SensorNoiseConfig, apply_sensor, auto_exposure  # noqa: E402
+from gaitnet.training.scripts import ScriptParser  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -213,7 +214,7 @@ def session_main(args: argparse.Namespace) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = ScriptParser(description=__doc__.splitlines()[0])
     ap.add_argument("--session", action="store_true", help="the whole default session")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
@@ -275,4 +276,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

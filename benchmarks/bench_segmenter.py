@@ -35,6 +35,7 @@ from gaitnet.segmentation.channels import ARCHS, input_channels
 from gaitnet.segmentation.fcn import OUTPUT_STRIDES, PADDINGS
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter, export_segmenter_onnx
 from gaitnet.segmentation.segmenter_net import SegmenterNet
+from gaitnet.training.scripts import ScriptParser
 
 #: arch:width:input_scale[:padding[:output_stride]] (padding "published", stride 8 when left
 #: out) — fusion at every width (full frames and half-size inside the net), the published
@@ -155,7 +156,7 @@ def fmt(cell: list) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ScriptParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--variants",
         nargs="+",
@@ -214,4 +215,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

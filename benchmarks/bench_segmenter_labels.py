@@ -17,7 +17,6 @@ Both are scored by ``gaitnet evaluate``'s own code
 
 from __future__ import annotations
 
-import argparse
 import json
 import tempfile
 from dataclasses import replace
@@ -32,6 +31,7 @@ from gaitnet.segmentation.hha import HhaParams, find_floor, hha_stride
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
 from gaitnet.segmentation.postprocess import FootKeypointParams, foot_keypoints, kept_feet_labels
 from gaitnet.segmentation.segment_session import default_segmenter_path, network_input
+from gaitnet.training.scripts import ScriptParser
 from gaitnet.training.segmenter import resolve_set, set_name
 
 
@@ -64,7 +64,7 @@ def score_set(
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = ScriptParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("sets", nargs="+", type=Path, help="labelled set folders or split files")
     ap.add_argument("--model", type=Path, default=None, help="segmenter (default: committed)")
     ap.add_argument(
@@ -104,4 +104,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

@@ -14,7 +14,6 @@ docs/segmenter.md, *Finer output and calibration*.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -25,6 +24,7 @@ from torch.nn import functional as nnf
 from gaitnet.errors import USER_ERRORS, InputError, user_error_message
 from gaitnet.evaluation.segmentation import confusion_matrix, segmentation_scores
 from gaitnet.segmentation.dataset import SegmentationFolder
+from gaitnet.training.scripts import ScriptParser
 from gaitnet.training.segmenter import resolve_set, set_name
 
 IGNORE = 255
@@ -46,7 +46,7 @@ def ceiling_confusion(labels: np.ndarray, stride: int, num_classes: int) -> np.n
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ScriptParser(description=__doc__.splitlines()[0])
     parser.add_argument("sets", nargs="+", help="split files or frame folders")
     parser.add_argument("--strides", type=int, nargs="+", default=[16, 8, 4, 2])
     parser.add_argument("--classes", default="background,foot,leg")
@@ -72,4 +72,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

@@ -14,7 +14,6 @@ attitude RMSE, landmark RMSE, same-foot stride-length RMSE).
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import time
@@ -29,6 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from smootherfactory import SynthConfig, make_problem  # noqa: E402
 
 from gaitnet.geometry import quat_boxminus  # noqa: E402
+from gaitnet.training.scripts import ScriptParser  # noqa: E402
 from gaitnet.vio.smoother import SmootherOptions, smooth  # noqa: E402
 
 
@@ -42,7 +42,7 @@ def _stride_rmse(est: dict[int, np.ndarray], truth: dict[int, np.ndarray]) -> fl
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = ScriptParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=60.0)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--repeat", type=int, default=3)
@@ -117,4 +117,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

@@ -26,7 +26,6 @@ rest-to-rest cycle), to set beside ``pipeline.swing_heel_off_fraction``.
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 from pathlib import Path
 
@@ -36,6 +35,7 @@ from gaitnet.motion.amass import load_amass_clip
 from gaitnet.motion.skeleton import builtin_skeleton, forward_kinematics, from_rest_joints
 from gaitnet.pipeline.config import PipelineParams
 from gaitnet.pipeline.swing_fill import swing_fill
+from gaitnet.training.scripts import ScriptParser
 from gaitnet.vio.gait import SIDES
 from gaitnet.vio.result import StanceFoot
 
@@ -126,7 +126,7 @@ def _report(name: str, scores: dict[str, list[float]]) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = ScriptParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("clips", nargs="*", type=Path, help="AMASS *_poses.npz files (real motion)")
     ap.add_argument("--simulated", type=int, default=12, help="simulated walks to score too")
     ap.add_argument("--height", type=float, default=1.75, help="body height for the lift [m]")
@@ -149,4 +149,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

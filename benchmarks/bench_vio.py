@@ -63,6 +63,7 @@ import vio_protocol as vp  # noqa: E402
 
 from gaitnet.config import load_config  # noqa: E402
 from gaitnet.evaluation.strides import SIDES  # noqa: E402
+from gaitnet.training.scripts import ScriptParser  # noqa: E402
 from gaitnet.vio.config import VioConfig  # noqa: E402
 
 DEFAULT_SESSIONS_DIR = Path("/tmp/gaitnet-bench/sessions")
@@ -229,7 +230,7 @@ def _json_safe(value: object) -> object:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(
+    parser = ScriptParser(
         description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("folders", nargs="*", type=Path, help="session folders (as --sessions)")
@@ -339,4 +340,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

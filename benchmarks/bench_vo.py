@@ -44,6 +44,7 @@ import yaml  # noqa: E402
 from gaitnet.geometry.rotation import so3_exp, so3_log  # noqa: E402
 from gaitnet.io import open_session  # noqa: E402
 from gaitnet.io.trajectory import read_tum  # noqa: E402
+from gaitnet.training.scripts import ScriptParser  # noqa: E402
 from gaitnet.vio.odometry import FrameOdometry, OdometryParams  # noqa: E402
 
 CHI2_6_95 = 12.592
@@ -96,7 +97,7 @@ def dense_odometry(K: np.ndarray):
 
 
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap = ScriptParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("sessions", nargs="+", type=Path)
     ap.add_argument("--every", type=int, default=1, help="use every N-th moving pair")
     ap.add_argument("--min-motion-mm", type=float, default=10.0)
@@ -225,4 +226,6 @@ def main(argv: list[str] | None = None) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

@@ -22,7 +22,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
-import argparse  # noqa: E402
 from dataclasses import replace  # noqa: E402
 
 import cv2  # noqa: E402
@@ -35,6 +34,7 @@ from gaitnet.sim.render_types import camera_rays  # noqa: E402
 from gaitnet.sim.scene import INSTANCE_LEFT, LABEL_FOOT, BodyState, ShoeState  # noqa: E402
 from gaitnet.sim.scene_setup import build_scene, rng_streams  # noqa: E402
 from gaitnet.sim.sensor_model import auto_exposure  # noqa: E402
+from gaitnet.training.scripts import ScriptParser  # noqa: E402
 
 F = 300.0  # focal length of the synthetic camera [px]
 SIZE = (200, 160)  # width, height
@@ -122,7 +122,7 @@ def report(seeds: int = 3) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = ScriptParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3)
     args = ap.parse_args()
     cv2.setNumThreads(1)
@@ -130,4 +130,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

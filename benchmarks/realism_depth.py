@@ -32,7 +32,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
-import argparse  # noqa: E402
 import inspect  # noqa: E402
 import time  # noqa: E402
 
@@ -46,6 +45,7 @@ from gaitnet.sim.render import render_frame  # noqa: E402
 from gaitnet.sim.render_types import RenderResult  # noqa: E402
 from gaitnet.sim.scene import Appearance, BodyState  # noqa: E402
 from gaitnet.sim.sensor_model import SensorNoiseConfig, apply_sensor  # noqa: E402
+from gaitnet.training.scripts import ScriptParser  # noqa: E402
 
 W, H, F = 640, 480, 386.0
 K = np.array([[F, 0.0, (W - 1) / 2], [0.0, F, (H - 1) / 2], [0.0, 0.0, 1.0]])
@@ -247,11 +247,13 @@ def report(m: dict) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ScriptParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=4)
     args = parser.parse_args()
     report(measure(args.seeds))
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

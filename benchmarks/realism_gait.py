@@ -17,13 +17,13 @@ gait*). Works with any gaitnet that has ``generate_walk(subject, GaitConfig, rng
 
 from __future__ import annotations
 
-import argparse
 from dataclasses import dataclass
 
 import numpy as np
 
 from gaitnet.sim.gait import GaitConfig, Walk, generate_walk
 from gaitnet.sim.subject import sample_subject
+from gaitnet.training.scripts import ScriptParser
 
 SPEEDS = (0.8, 1.0, 1.2, 1.4, 1.6)
 DT = 2e-3
@@ -202,7 +202,7 @@ def report(result: dict) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ScriptParser(description=__doc__.splitlines()[0])
     parser.add_argument("--subjects", type=int, default=4)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
@@ -210,4 +210,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

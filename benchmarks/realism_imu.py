@@ -27,7 +27,6 @@ rows read 0 or n/a).
 
 from __future__ import annotations
 
-import argparse
 import time
 from pathlib import Path
 
@@ -39,6 +38,7 @@ from gaitnet.sim.config import SimConfig
 from gaitnet.sim.imu import ImuConfig, simulate_imu
 from gaitnet.sim.scene_setup import build_scene, rng_streams
 from gaitnet.sim.strapdown import integrate_imu
+from gaitnet.training.scripts import ScriptParser
 
 ROOT = Path(__file__).resolve().parents[1]
 G0 = 9.80665
@@ -273,11 +273,13 @@ def print_report(rows: dict[str, dict[str, float]]) -> None:
 
 def main(seeds: int | None = None) -> None:
     if seeds is None:
-        parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+        parser = ScriptParser(description=__doc__.splitlines()[0])
         parser.add_argument("--seeds", type=int, default=2)
         seeds = parser.parse_args().seeds
     print_report(report(seeds))
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

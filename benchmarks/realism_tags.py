@@ -27,7 +27,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
-import argparse  # noqa: E402
 from dataclasses import dataclass, replace  # noqa: E402
 
 import cv2  # noqa: E402
@@ -40,6 +39,7 @@ from gaitnet.sim.render_color import encode_srgb8  # noqa: E402
 from gaitnet.sim.rig import CameraConfig  # noqa: E402
 from gaitnet.sim.scene_setup import SimScene, build_scene, rng_streams  # noqa: E402
 from gaitnet.sim.sensor_model import apply_sensor, auto_exposure  # noqa: E402
+from gaitnet.training.scripts import ScriptParser  # noqa: E402
 
 FAMILIES = ("tiles", "wood", "carpet", "concrete", "textureless")
 SCALE_NATIVE = 0.6  # 1280×800 → 768×480, then the central 640 columns = the 640×480 mode
@@ -226,7 +226,7 @@ def report(seeds: int = 5) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = ScriptParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--pitches", type=float, nargs="+", default=[55.0, 70.0, 80.0])
     ap.add_argument("--heights", type=float, nargs="+", default=[1.55, 1.9])
@@ -238,4 +238,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

@@ -13,7 +13,6 @@ simulator's true events.
 
 from __future__ import annotations
 
-import argparse
 import csv
 import time
 from pathlib import Path
@@ -38,11 +37,12 @@ from gaitnet.pipeline.plots import (
     top_view_png,
     write_png,
 )
+from gaitnet.training.scripts import ScriptParser
 from gaitnet.vio.gait import strides_from_stances
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = ScriptParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("session", type=Path)
     ap.add_argument("--out", type=Path, required=True)
     args = ap.parse_args()
@@ -112,4 +112,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))

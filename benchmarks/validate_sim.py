@@ -21,7 +21,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
-import argparse  # noqa: E402
 import hashlib  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -46,6 +45,7 @@ from gaitnet.sim.session import simulate_session  # noqa: E402
 from gaitnet.sim.strapdown import integrate_imu  # noqa: E402
 from gaitnet.sim.subject import sample_subject  # noqa: E402
 from gaitnet.sim.worker_pool import default_workers  # noqa: E402
+from gaitnet.training.scripts import ScriptParser  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -173,7 +173,7 @@ def digest(root: Path) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ScriptParser(description=__doc__.splitlines()[0])
     parser.add_argument("--walks", type=int, default=40)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default="runs/validate_sim")
@@ -219,4 +219,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from script_errors import run_script
+
+    raise SystemExit(run_script(main))
