@@ -99,12 +99,12 @@ class DataConfig:
         for name in ("train", "val"):
             if not str(getattr(self, name)).strip():
                 raise ValueError(f"data.{name} must name a split file or a folder")
+        check_int_range("data.num_workers", self.num_workers, 0, 256)
 
     @property
     def train_sets(self) -> tuple[Path, ...]:
         """Every training set: ``train``, then ``train_extra``."""
         return (self.train, *self.train_extra)
-        check_int_range("data.num_workers", self.num_workers, 0, 256)
 
 
 @dataclass(frozen=True)
