@@ -8,6 +8,7 @@ validation, test or held-out sets shares a seed with a training frame::
                    not on HELD_OUT, train.txt those among the first 300 (the earlier models' set)
     OUT/train2/    --seed 505, 1000 more, random floor family; train2.txt lists the frames not on
                    HELD_OUT (``data.train_extra`` of configs/segmenter/fusion_cpu_s4_xl.yaml)
+    OUT/train3/    --seed 606, 1000 more, likewise (configs/segmenter/fusion_cpu_s4_xxl.yaml)
     OUT/val/       --seed 202, random floor family; val.txt   lists the frames not on HELD_OUT
     OUT/test/      --seed 303, random floor family; test.txt  lists the frames not on HELD_OUT
     OUT/heldout/   --seed 404, every frame on the held-out family; heldout.txt lists them all
@@ -18,7 +19,7 @@ per line (the format of :func:`gaitnet.segmentation.folder_files.read_split`).
 
     python data/make_segmentation_data.py --out data/cache/seg
 
-reproduces the data of the committed models (2240 frames, about 1 s each on an idle CPU core;
+reproduces the data of the committed models (3240 frames, about 1 s each on an idle CPU core;
 ``--sets`` splits the work between processes). Every frame has its own seed from the set's seed
 and its index, so the first 300 frames of ``train/`` are those of a 300-frame render.
 """
@@ -42,6 +43,7 @@ SETS: tuple[tuple[str, int, int, str | None], ...] = (
     ("test", 303, 100, None),
     ("heldout", 404, 60, HELD_OUT),
     ("train2", 505, 1000, None),
+    ("train3", 606, 1000, None),
 )
 
 
