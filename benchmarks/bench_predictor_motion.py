@@ -26,14 +26,12 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import sys  # noqa: E402
 import tempfile  # noqa: E402
 from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from gaitnet.errors import USER_ERRORS, user_error_message  # noqa: E402
 from gaitnet.motion.amass import DEFAULT_EXCLUDE, DEFAULT_INCLUDE  # noqa: E402
 from gaitnet.motion.evaluation import (  # noqa: E402
     constant_velocity,
@@ -87,13 +85,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--skeleton-height", type=float, default=1.75)
     parser.add_argument("--json", help="write the numbers to this JSON file")
     args = parser.parse_args(argv)
-    try:
-        windows = _windows(args)
-        poses, labels = labelled_windows(windows)
-        models = {n: onnx_predictor(OnnxPredictor(p, threads=1)) for n, p in args.model}
-    except USER_ERRORS as exc:
-        print(f"error: {user_error_message(exc)}", file=sys.stderr)
-        return 1
+    windows = _windows(args)
+    poses, labels = labelled_windows(windows)
+    models = {n: onnx_predictor(OnnxPredictor(p, threads=1)) for n, p in args.model}
     skeleton = builtin_skeleton(args.skeleton_height)
     print(f"{len(poses)} windows (stride {args.stride}) from {windows.data.path}")
     report: dict[str, object] = {"n_windows": int(len(poses)), "types": {}}
@@ -131,6 +125,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    from script_errors import run_script
+    from gaitnet.cli.scripts import run_script
 
     raise SystemExit(run_script(main))

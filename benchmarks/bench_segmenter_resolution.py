@@ -14,14 +14,13 @@ docs/segmenter.md, *Finer output and calibration*.
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
 import torch
 from torch.nn import functional as nnf
 
-from gaitnet.errors import USER_ERRORS, InputError, user_error_message
+from gaitnet.errors import InputError
 from gaitnet.evaluation.segmentation import confusion_matrix, segmentation_scores
 from gaitnet.segmentation.dataset import SegmentationFolder
 from gaitnet.training.scripts import ScriptParser
@@ -54,24 +53,20 @@ def main(argv: list[str] | None = None) -> int:
     names = args.classes.split(",")
     if min(args.strides) < 1 or len(names) < 2:
         parser.error("--strides must be ≥ 1 and --classes must name at least 2 classes")
-    try:
-        print(f"{'set':10s} {'stride':>6s} {'mIoU':>7s} " + " ".join(f"{n:>10s}" for n in names))
-        for path in args.sets:
-            root, ids = resolve_set(Path(path))
-            folder = SegmentationFolder(root, ids)
-            label_maps = [folder.read_labels(i)[0] for i in folder.ids]
-            for stride in args.strides:
-                conf = sum(ceiling_confusion(lab, stride, len(names)) for lab in label_maps)
-                scores = segmentation_scores(conf, names)
-                ious = " ".join(f"{scores['iou'][n]:10.4f}" for n in names)
-                print(f"{set_name(Path(path)):10s} {stride:6d} {scores['miou']:7.4f} {ious}")
-    except USER_ERRORS as exc:
-        print(f"error: {user_error_message(exc)}", file=sys.stderr)
-        return 1
+    print(f"{'set':10s} {'stride':>6s} {'mIoU':>7s} " + " ".join(f"{n:>10s}" for n in names))
+    for path in args.sets:
+        root, ids = resolve_set(Path(path))
+        folder = SegmentationFolder(root, ids)
+        label_maps = [folder.read_labels(i)[0] for i in folder.ids]
+        for stride in args.strides:
+            conf = sum(ceiling_confusion(lab, stride, len(names)) for lab in label_maps)
+            scores = segmentation_scores(conf, names)
+            ious = " ".join(f"{scores['iou'][n]:10.4f}" for n in names)
+            print(f"{set_name(Path(path)):10s} {stride:6d} {scores['miou']:7.4f} {ious}")
     return 0
 
 
 if __name__ == "__main__":
-    from script_errors import run_script
+    from gaitnet.cli.scripts import run_script
 
     raise SystemExit(run_script(main))

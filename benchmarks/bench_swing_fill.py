@@ -149,6 +149,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    from script_errors import run_script
+    from gaitnet.cli.scripts import run_script
 
     raise SystemExit(run_script(main))

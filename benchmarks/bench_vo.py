@@ -226,6 +226,6 @@ def main(argv: list[str] | None = None) -> None:
 
 
 if __name__ == "__main__":
-    from script_errors import run_script
+    from gaitnet.cli.scripts import run_script
 
     raise SystemExit(run_script(main))

@@ -24,8 +24,9 @@ import torch
 from torch.utils.data import DataLoader
 from tqdm import tqdm
 
+from gaitnet.cli.scripts import run_script
 from gaitnet.config import load_config
-from gaitnet.errors import USER_ERRORS, InputError, user_error_message
+from gaitnet.errors import InputError
 from gaitnet.segmentation.segmenter_net import model_input
 from gaitnet.training.calibration import PixelSample, fit_logit_bias
 from gaitnet.training.checkpoint import load_checkpoint, load_state, save_checkpoint
@@ -124,13 +125,7 @@ def get_args_parser() -> argparse.ArgumentParser:
 def cli(argv: list[str] | None = None) -> int:
     """As train/segmenter.py: bad input is one line on stderr and exit status 1."""
     try:
-        return main(get_args_parser().parse_args(argv))
-    except USER_ERRORS as exc:
-        print(f"error: {user_error_message(exc)}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print("error: interrupted", file=sys.stderr)
-        return 130
+        return run_script(lambda: main(get_args_parser().parse_args(argv)))
     finally:
         close_logging()
 

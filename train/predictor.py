@@ -30,8 +30,9 @@ import torch
 from torch.utils.data import DataLoader, DistributedSampler
 from tqdm import tqdm
 
+from gaitnet.cli.scripts import run_script
 from gaitnet.config import config_to_dict, dump_config, load_config
-from gaitnet.errors import USER_ERRORS, InputError, user_error_message
+from gaitnet.errors import InputError
 from gaitnet.evaluation.metrics import mean_angle_error, mpjpe_per_horizon
 from gaitnet.io.atomic import atomic_write_text
 from gaitnet.motion.evaluation import (
@@ -456,13 +457,7 @@ def cli(argv: list[str] | None = None) -> int:
     """Parse ``argv`` and run :func:`main`: bad input is one line on stderr and exit status 1
     (gaitnet's error taxonomy, gaitnet/errors.py); anything else is a bug with a traceback."""
     try:
-        return main(get_args_parser().parse_args(argv))
-    except USER_ERRORS as exc:
-        print(f"error: {user_error_message(exc)}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print("error: interrupted", file=sys.stderr)
-        return 130
+        return run_script(lambda: main(get_args_parser().parse_args(argv)))
     finally:
         close_logging()
         cleanup_distributed()

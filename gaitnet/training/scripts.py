@@ -1,15 +1,8 @@
-"""What the entry scripts (``train/*.py``, ``export/*.py``) share: the error contract of a command.
-
-As ``gaitnet`` itself (:data:`gaitnet.errors.USER_ERRORS`): bad input, i.e. a
-:class:`~gaitnet.errors.GaitnetError` or an ``OSError`` on a user's path, and a usage error, is
-ONE line on stderr and exit status 1; anything else is a bug and keeps its traceback. The
-scripts print (library code does not):
-
-    try:
-        return main(ScriptParser(...).parse_args(argv))
-    except USER_ERRORS as exc:
-        print(f"error: {user_error_message(exc)}", file=sys.stderr)
-        return 1
+"""What the entry scripts (``train/*.py``, ``export/*.py``, ``data/*.py``, ``benchmarks/*.py``)
+share: a usage error is an :class:`~gaitnet.errors.InputError`, so that
+:func:`gaitnet.cli.scripts.run_script` (the contract of a command, as ``gaitnet`` itself: bad
+input is ONE line on stderr and exit status 1; anything else is a bug and keeps its traceback)
+reports it like any other bad input.
 """
 
 from __future__ import annotations
