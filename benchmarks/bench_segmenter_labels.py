@@ -32,7 +32,7 @@ from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
 from gaitnet.segmentation.postprocess import FootKeypointParams, foot_keypoints, kept_feet_labels
 from gaitnet.segmentation.segment_session import default_segmenter_path, network_input
 from gaitnet.training.scripts import ScriptParser
-from gaitnet.training.segmenter import resolve_set, set_name
+from gaitnet.training.segmenter_data import resolve_set, set_name
 
 
 def score_set(

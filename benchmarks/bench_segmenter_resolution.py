@@ -24,7 +24,7 @@ from gaitnet.errors import InputError
 from gaitnet.evaluation.segmentation import confusion_matrix, segmentation_scores
 from gaitnet.segmentation.dataset import SegmentationFolder
 from gaitnet.training.scripts import ScriptParser
-from gaitnet.training.segmenter import resolve_set, set_name
+from gaitnet.training.segmenter_data import resolve_set, set_name
 
 IGNORE = 255
 

@@ -30,15 +30,13 @@ from gaitnet.training.metrics import read_metrics
 from gaitnet.training.runs import SkipSampler
 from gaitnet.training.segmenter import (
     SegmenterTrainingConfig,
-    build_dataset,
     build_loss,
     build_model,
     build_optimizer,
     build_scheduler,
-    build_training_set,
-    resolve_set,
     scores_of,
 )
+from gaitnet.training.segmenter_data import build_dataset, build_training_set, resolve_set
 
 ROOT = Path(__file__).parents[1]
 SCRIPT = ROOT / "train" / "segmenter.py"
@@ -388,7 +386,7 @@ def test_data_keys_and_sets(frames: Path) -> None:
 
 
 def test_extra_training_sets_join_the_first(frames: Path, monkeypatch) -> None:
-    import gaitnet.training.segmenter as seg
+    import gaitnet.training.segmenter_data as seg
 
     one = _cfg(f"data.train={frames / 'train.txt'}")
     assert isinstance(build_training_set(one, seed=5), SegmentationFolder)

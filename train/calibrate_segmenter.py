@@ -36,11 +36,10 @@ from gaitnet.training.scripts import ScriptParser
 from gaitnet.training.segmenter import (
     SegmenterTrainingConfig,
     architecture_only,
-    build_dataset,
     build_model,
-    set_name,
     with_checkpoint_model,
 )
+from gaitnet.training.segmenter_data import build_dataset, set_name
 
 logger = logging.getLogger("train.calibrate_segmenter")
 

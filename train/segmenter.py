@@ -63,17 +63,15 @@ from gaitnet.training.segmenter import (
     CLASS_NAMES,
     SegmenterTrainingConfig,
     architecture_only,
-    build_dataset,
     build_loss,
     build_model,
     build_optimizer,
     build_scheduler,
-    build_training_set,
     confusion_of,
     scores_of,
-    set_name,
     with_checkpoint_model,
 )
+from gaitnet.training.segmenter_data import build_dataset, build_training_set, set_name
 
 logger = logging.getLogger("train.segmenter")
 

@@ -1,10 +1,11 @@
-"""Typed training config, data sets, optimiser and metrics of the foot/leg segmenter (sec. 4.1).
+"""Typed training config, optimiser and metrics of the foot/leg segmenter (sec. 4.1).
 
 :class:`SegmenterTrainingConfig` is what ``configs/segmenter/*.yaml`` hold (every key in
 ``docs/configs.md``, *Segmenter training*); ``train/segmenter.py`` reads it with
 :func:`gaitnet.config.load_config`.
 
-Data sets are named by a path (:func:`resolve_set`): a split file (text, one frame id per
+Data sets (built by :mod:`gaitnet.training.segmenter_data`) are named by a path
+(:func:`~gaitnet.training.segmenter_data.resolve_set`): a split file (text, one frame id per
 line, :func:`gaitnet.segmentation.folder_files.read_split`) whose frames lie in the file's folder,
 or a folder (every frame in it). Such a folder is a ``gaitnet simulate-dataset`` output or a
 labelme folder (``data/README.md``); :class:`~gaitnet.segmentation.dataset.SegmentationFolder`
@@ -34,15 +35,12 @@ import numpy as np
 import torch
 
 from gaitnet.checks import check_int_range, check_range
-from gaitnet.errors import ConfigError, InputError
+from gaitnet.errors import ConfigError
 from gaitnet.evaluation.segmentation import confusion_matrix, segmentation_scores
 from gaitnet.segmentation.augment import AugmentParams
 from gaitnet.segmentation.channels import ARCHS
-from gaitnet.segmentation.dataset import SegmentationFolder
 from gaitnet.segmentation.fcn import PADDINGS, check_output_stride
 from gaitnet.segmentation.focal_loss import FocalLoss
-from gaitnet.segmentation.folder_files import read_split
-from gaitnet.segmentation.hha import hha_stride
 from gaitnet.segmentation.segmenter_net import (
     SegmenterNet,
     build_segmenter,
@@ -52,6 +50,7 @@ from gaitnet.segmentation.segmenter_net import (
 from gaitnet.training.checkpoint import load_checkpoint
 from gaitnet.training.checkpoint import with_checkpoint_model as checkpoint_model
 from gaitnet.training.predictor import DEVICE_PATTERN
+from gaitnet.training.segmenter_data import set_name
 
 __all__ = [
     "CLASS_NAMES",
@@ -64,16 +63,12 @@ __all__ = [
     "TrainConfig",
     "architecture_only",
     "with_checkpoint_model",
-    "build_dataset",
-    "build_training_set",
     "build_loss",
     "build_model",
     "build_optimizer",
     "build_scheduler",
     "confusion_of",
-    "resolve_set",
     "scores_of",
-    "set_name",
     "start_from_checkpoint",
 ]
 
@@ -275,83 +270,6 @@ class SegmenterTrainingConfig:
     @property
     def run_dir(self) -> Path:
         return self.output_dir / self.name
-
-
-# --------------------------------------------------------------------------------- data
-
-
-def set_name(path: Path) -> str:
-    """A set's name in reports: the split file's stem, or the folder's name."""
-    path = Path(path)
-    return path.stem if path.suffix == ".txt" else path.name
-
-
-def resolve_set(path: Path) -> tuple[Path, list[str] | None]:
-    """``(folder, ids)`` of a set given as a split file (its frames lie beside it) or a folder
-    (``ids`` None: every frame)."""
-    path = Path(path)
-    if path.is_dir():
-        return path, None
-    if not path.exists():
-        raise InputError(f"data set {path} does not exist (a split file or a frame folder)")
-    ids = read_split(path)
-    if not ids:
-        raise InputError(f"split file {path} lists no frame")
-    return path.parent, ids
-
-
-def build_dataset(
-    path: Path, cfg: SegmenterTrainingConfig, augment: bool, seed: int = 0
-) -> SegmentationFolder:
-    """The set at ``path`` (:func:`resolve_set`), with ``data.augment`` when ``augment``; HHA
-    at the resolution the model's streams see (:func:`~gaitnet.segmentation.hha.hha_stride`)."""
-    root, ids = resolve_set(path)
-    params = cfg.data.augment if augment else None
-    return SegmentationFolder(
-        root,
-        ids,
-        augment=params,
-        cache_hha=cfg.data.cache_hha,
-        seed=seed,
-        hha_stride=hha_stride(cfg.model.input_scale),
-    )
-
-
-class TrainingSets(torch.utils.data.ConcatDataset):
-    """Several training sets as one (``data.train`` and ``data.train_extra``); the augmentation
-    epoch reaches each (:meth:`SegmentationFolder.set_epoch`)."""
-
-    def set_epoch(self, epoch: int) -> None:
-        for ds in self.datasets:
-            ds.set_epoch(epoch)
-
-
-def build_training_set(
-    cfg: SegmenterTrainingConfig, seed: int = 0
-) -> SegmentationFolder | TrainingSets:
-    """``data.train`` with ``data.augment``, joined by the sets of ``data.train_extra``; the
-    k-th set draws its augmentations from ``seed + k`` (the frames of two sets with the same
-    index are not augmented alike). Sets of different frame sizes need a fixed crop
-    (``data.augment.crop_height`` and ``crop_width``) to be batched together."""
-    sets = [
-        build_dataset(path, cfg, augment=True, seed=seed + k)
-        for k, path in enumerate(cfg.data.train_sets)
-    ]
-    if len(sets) == 1:
-        return sets[0]
-    aug = cfg.data.augment
-    cropped = aug is not None and aug.crop_height > 0 and aug.crop_width > 0
-    sizes = {(ds.intrinsics.height, ds.intrinsics.width) for ds in sets}
-    if len(sizes) > 1 and not cropped:
-        listing = ", ".join(
-            f"{path} ({ds.intrinsics.width}×{ds.intrinsics.height})"
-            for path, ds in zip(cfg.data.train_sets, sets, strict=True)
-        )
-        raise InputError(
-            f"data.train and data.train_extra have frames of different sizes ({listing}): "
-            "set data.augment.crop_height and crop_width to batch them together"
-        )
-    return TrainingSets(sets)
 
 
 # --------------------------------------------------------------------------- model, optim
