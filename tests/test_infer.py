@@ -18,7 +18,7 @@ from gaitnet.io import open_session
 from gaitnet.motion.skeleton import builtin_skeleton, forward_kinematics
 from gaitnet.pipeline.config import InferConfig, PipelineParams
 from gaitnet.pipeline.foot_points import floor_in_camera
-from gaitnet.pipeline.infer import _contact, _standing_frames
+from gaitnet.pipeline.infer import _contact, _standing_feet, _standing_frames
 from gaitnet.segmentation.onnx_runtime import export_segmenter_onnx
 from gaitnet.segmentation.segmenter_net import build_segmenter
 from gaitnet.vio.result import StanceFoot
@@ -120,6 +120,26 @@ def test_standing_frames_and_contact() -> None:
 
     c = _contact(Vio(), np.array([0.0, 0.2, 0.45, 0.7, 1.0]))
     np.testing.assert_array_equal(c, [[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]])
+
+
+def test_standing_feet_take_only_what_was_seen_while_standing() -> None:
+    t = np.arange(60) / 30.0
+    measured = np.full((60, 2, 3), np.nan)
+    measured[:20, 0] = [0.1, 0.1, 0.05]  # the left foot seen while standing (20 frames)
+    measured[30:, 1] = [0.9, -0.1, 0.05]  # the right one only once walking
+
+    class Vio:
+        t_s = t
+        stance_feet = [  # the filter's landmarks: the right foot while standing, then a step
+            StanceFoot(0, "right", 0.5, 1.5, np.array([0.0, -0.1]), np.zeros(2), 3),
+            StanceFoot(1, "right", 1.6, 1.9, np.array([0.8, -0.1]), np.zeros(2), 3),
+        ]
+
+    feet = _standing_feet(measured, Vio(), 0.04, 20)  # type: ignore[arg-type]
+    np.testing.assert_allclose(feet, [[0.1, 0.1, 0.05], [0.0, -0.1, 0.04]])
+    Vio.stance_feet = Vio.stance_feet[1:]  # only the step: first seen after standing
+    feet = _standing_feet(measured, Vio(), 0.04, 20)  # type: ignore[arg-type]
+    assert np.all(np.isnan(feet[1])) and np.all(np.isfinite(feet[0]))
 
 
 def test_default_yaml_is_the_built_in_config_and_unused_keys_are_refused() -> None:
@@ -237,3 +257,40 @@ def test_feet_measured_on_the_filter_pose_end_on_the_smoothed_one(
     assert np.isnan(obs.foot_W[unseen, 1]).all()
     assert list(obs.t_ns) == list(open_session(tiny_sim_session).frame_times_ns[vio.session_index])
     assert obs.timings_s["segmenter_cpu"] >= 0 and obs.timings_s["filter"] > 0
+
+
+def test_feet_unseen_while_standing_are_placed_behind_the_camera(
+    tiny_sim_session: Path, monkeypatch, caplog
+) -> None:
+    """Neither the segmenter nor the filter saw a foot while standing: the standing feet lie
+    ``pipeline.standing_feet_behind_camera_m`` behind the camera, so the standing pelvis moves
+    with the key along the camera's heading, and a warning names the key."""
+    import gaitnet.pipeline.infer as infer
+    from gaitnet.config import load_config
+    from gaitnet.motion.onnx_runtime import OnnxPredictor
+    from gaitnet.pipeline.foot_points import FrameFeet
+
+    def unseen(frame, *args, **kwargs) -> FrameFeet:
+        return FrameFeet(np.full((2, 3), np.nan), np.zeros(frame.depth_m.shape, np.uint8), 0)
+
+    monkeypatch.setattr(infer, "measure_feet", unseen)
+    cfg = load_config(InferConfig, None, ["vio.smoother.enabled=false"])
+
+    class NoSegmenter:
+        arch, input_scale, path = "rgb", 0.5, Path("none")
+
+    obs = infer.observe(open_session(tiny_sim_session), cfg, segmenter=NoSegmenter())  # type: ignore[arg-type]
+    obs = replace(obs, vio=replace(obs.vio, stance_feet=[]))
+    predictor = OnnxPredictor(infer.default_predictor_path())
+    pelvis = {}
+    for behind in (0.1, 0.3):
+        keys = ["vio.smoother.enabled=false", f"pipeline.standing_feet_behind_camera_m={behind}"]
+        with caplog.at_level("WARNING", logger="gaitnet.pipeline.infer"):
+            result = infer.reconstruct(obs, load_config(InferConfig, None, keys), predictor)
+        assert f"{behind:.2f} m behind the camera" in caplog.text
+        assert np.all(np.isfinite(result.joints_W))
+        pelvis[behind] = result.extrinsic.T_WfromP[:3, 3]
+    heading = obs.vio.T_WfromC[0][:2, 2] / np.linalg.norm(obs.vio.T_WfromC[0][:2, 2])
+    shift = pelvis[0.3] - pelvis[0.1]
+    np.testing.assert_allclose(shift[:2], -0.2 * heading, atol=1e-9)
+    assert abs(shift[2]) < 1e-9

@@ -19,6 +19,7 @@ from gaitnet.geometry import (
 from gaitnet.motion import builtin_skeleton, forward_kinematics
 from gaitnet.motion.heading import normalise_heading
 from gaitnet.pipeline.pelvis_extrinsic import (
+    complete_standing_feet,
     estimate_T_PfromC,
     pelvis_from_camera,
     standing_T_WfromP,
@@ -532,6 +533,42 @@ def test_extrinsic_bad_input() -> None:
         standing_T_WfromP(SKEL, np.zeros((2, 3)), None, yaw_from="camera")
     with pytest.raises(InputError):
         standing_T_WfromP(SKEL, np.zeros((2, 3)), np.eye(4), yaw_from="up")  # type: ignore[arg-type]
+
+
+def test_unseen_standing_feet_are_placed_from_the_skeleton_and_the_camera() -> None:
+    par = PoseCorrectionParams()
+    psi, where = 0.7, np.array([2.0, -1.0, 0.0])
+    R_WfromP = so3_exp([0.0, 0.0, psi])
+    standing = PoseState(np.r_[so3_log(R_WfromP @ R_PfromSMPL), np.zeros(18)], where)
+    pts = model_points(standing, par)
+    T_WfromP = np.eye(4)
+    T_WfromP[:3, :3], T_WfromP[:3, 3] = R_WfromP, pts["p_PinW"]
+    cam = T_WfromP @ _mount()  # the mount has no yaw: the camera heads along the pelvis's x
+    feet = pts["foot"]
+    same, note = complete_standing_feet(feet, SKEL, cam, 0.05, 0.1, par)
+    np.testing.assert_array_equal(same, feet)
+    assert note is None
+    for lost in (0, 1):  # one foot lost: placed where the skeleton's other foot is
+        partial = feet.copy()
+        partial[lost] = np.nan
+        placed, note = complete_standing_feet(partial, SKEL, cam, 0.05, 0.1, par)
+        np.testing.assert_allclose(placed, feet, atol=1e-12)
+        assert note is not None and ("left", "right")[lost] in note
+    # neither seen: the midpoint lies behind_camera_m behind the camera, on its heading
+    heading = np.array([np.cos(psi), np.sin(psi), 0.0])
+    for behind in (0.1, 0.25):
+        placed, note = complete_standing_feet(np.full((2, 3), np.nan), SKEL, cam, 0.05, behind, par)
+        middle = placed.mean(axis=0)
+        np.testing.assert_allclose(middle[:2], cam[:2, 3] - behind * heading[:2], atol=1e-12)
+        np.testing.assert_allclose(placed[:, 2], 0.05)
+        np.testing.assert_allclose(placed[0] - placed[1], feet[0] - feet[1], atol=1e-12)
+        assert note is not None and f"{behind:.2f} m" in note
+        # the standing pelvis over them is the true one moved as the feet's midpoint moved
+        T_est = standing_T_WfromP(SKEL, placed, cam, params=par)
+        shift = T_est[:3, 3] - T_WfromP[:3, 3]
+        np.testing.assert_allclose(shift, middle - feet.mean(axis=0), atol=1e-12)
+    with pytest.raises(InputError):
+        complete_standing_feet(np.zeros((3, 3)), SKEL, cam, 0.05, 0.1, par)
 
 
 # --- predict-correct loop -------------------------------------------------------------------

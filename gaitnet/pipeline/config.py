@@ -101,6 +101,11 @@ class PipelineParams:
     extrinsic [s]."""
     standing_max_speed_mps: float = 0.05
     """Frames whose camera moves faster than this end the standing phase [m/s]."""
+    standing_feet_behind_camera_m: float = 0.10
+    """Only when neither foot is seen while standing (by the segmenter, or by the filter as a
+    stance landmark then): the standing feet's midpoint lies this far behind the camera along
+    its horizontal viewing direction [m] (a belly-worn camera ahead of the insteps; the
+    simulator's subjects give 0.09–0.11 m where the feet are seen)."""
     gap_fill: Literal["swing", "bridge", "none"] = "swing"
     """Correct the poses a second time with the frames where a foot is not seen filled in:
     ``swing``: between two stance landmarks of that foot, the template swing from one rest to
@@ -133,6 +138,10 @@ class PipelineParams:
         check_range("pipeline.camera_height_fraction", self.camera_height_fraction, 0.3, 0.8)
         check_range("pipeline.standing_s", self.standing_s, 0.1, 10.0, " s")
         check_range("pipeline.standing_max_speed_mps", self.standing_max_speed_mps, 0.0, 1.0)
+        check_range(
+            "pipeline.standing_feet_behind_camera_m",
+            self.standing_feet_behind_camera_m, -0.5, 0.5, " m",
+        )  # fmt: skip
         if len(self.marker_offset_m) != 3:
             raise ValueError("pipeline.marker_offset_m must be three numbers [m]")
         for value in self.marker_offset_m:

@@ -47,6 +47,7 @@ from gaitnet.pipeline.foot_points import FrameFeet, measure_feet
 from gaitnet.pipeline.gap_bridge import bridge_gaps
 from gaitnet.pipeline.pelvis_extrinsic import (
     PelvisExtrinsic,
+    complete_standing_feet,
     estimate_T_PfromC,
     pelvis_from_camera,
     standing_T_WfromP,
@@ -150,23 +151,20 @@ def _standing_feet(
     measured: np.ndarray, vio: VioResult, skeleton_marker_height: float, n_standing: int
 ) -> np.ndarray:
     """(2, 3) standing foot points: the mean of the measured ones over the standing frames,
-    else the first stance landmark of that side at the marker's standing height."""
+    else the stance landmark of that side that the filter saw during the standing phase (a
+    later one is a step, not the standing foot) at the marker's standing height, else NaN."""
     feet = np.full((2, 3), np.nan)
+    t_end = vio.t_s[n_standing - 1]
     for i, side in enumerate(SIDES):
         seen = measured[:n_standing, i]
         seen = seen[~np.isnan(seen[:, 0])]
         if len(seen):
             feet[i] = seen.mean(axis=0)
             continue
-        first = [f for f in vio.stance_feet if f.side == side]
-        if first:
-            xy = min(first, key=lambda f: f.t_first_s).xy
+        standing = [f for f in vio.stance_feet if f.side == side and f.t_first_s <= t_end]
+        if standing:
+            xy = min(standing, key=lambda f: f.t_first_s).xy
             feet[i] = [xy[0], xy[1], skeleton_marker_height]
-    if np.isnan(feet).any():
-        raise SessionError(
-            "no standing foot: neither the segmenter nor the filter found both feet at the "
-            "start (does the session start with the subject standing in view?)"
-        )
     return feet
 
 
@@ -320,6 +318,12 @@ def reconstruct(
     )
     marker_height = 0.039 * height + correction.marker_offset_m[1]  # ankle height + offset
     foot0 = _standing_feet(measured, vio, marker_height, n_standing)
+    foot0, note = complete_standing_feet(
+        foot0, skeleton, T_WfromC[0], marker_height,
+        cfg.pipeline.standing_feet_behind_camera_m, correction,
+    )  # fmt: skip
+    if note is not None:
+        log.warning("%s", note)
     T_WfromP0 = standing_T_WfromP(skeleton, foot0, T_WfromC[0], params=correction)
     extrinsic = estimate_T_PfromC(T_WfromC[:n_standing], T_WfromP0)
     T_WfromP = pelvis_from_camera(T_WfromC, extrinsic.T_PfromC)

@@ -18,6 +18,11 @@ start, the pelvis pose is taken from a standing pose of the skeleton placed in t
 
 The height comes from the feet, so a pelvis that sags or a knee that bends while standing
 shows up as a vertical offset of the extrinsic (sub-centimetre for a relaxed stance).
+
+A foot that was not seen while standing (a camera pitched up too far to see the feet, a foot
+outside the image) is placed by :func:`complete_standing_feet`: beside the other foot at the
+skeleton's stance width, or, when neither was seen, both a nominal distance behind the camera
+along its horizontal viewing direction; the extrinsic is then only as good as that guess.
 """
 
 from __future__ import annotations
@@ -36,7 +41,16 @@ from gaitnet.pipeline.pose_types import PoseCorrectionParams, R_PfromSMPL
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["PelvisExtrinsic", "estimate_T_PfromC", "pelvis_from_camera", "standing_T_WfromP"]
+__all__ = [
+    "PelvisExtrinsic",
+    "complete_standing_feet",
+    "estimate_T_PfromC",
+    "pelvis_from_camera",
+    "standing_T_WfromP",
+    "standing_model_feet",
+]
+
+SIDES = ("left", "right")
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,6 +71,32 @@ def _yaw_rotation(psi: float) -> FloatArray:
 
 def _yaw_of(v: FloatArray) -> float:
     return float(np.arctan2(v[1], v[0]))
+
+
+def standing_model_feet(
+    skeleton: LowerBodySkeleton,
+    joint_aa: ArrayLike | None = None,
+    params: PoseCorrectionParams | None = None,
+) -> tuple[FloatArray, FloatArray]:
+    """The foot points (2, 3) (left, right: ankle plus the marker offset, as in the correction)
+    of the standing pose ``joint_aa`` (6, 3) (default zeros: straight legs) with the pelvis at
+    the origin, facing +x (``R_WfromP = I``), and the pelvis joint's position ``J0`` (3,) in
+    that frame."""
+    aa = np.zeros((6, 3)) if joint_aa is None else np.asarray(joint_aa, dtype=np.float64)
+    if aa.shape != (6, 3) or not np.all(np.isfinite(aa)):
+        raise InputError("standing joint_aa: expected finite (6, 3) local rotations")
+    geo = ChainGeometry.build(skeleton, params or PoseCorrectionParams())
+    model = ChainState(
+        R0=R_PfromSMPL[None].copy(), t=np.zeros((1, 3)), a=aa[None], l=geo.lengths[None].copy()
+    )
+    return chain_points(geo, model)["foot"][0], np.asarray(geo.J0, dtype=np.float64)
+
+
+def _camera_yaw(T_WfromC: ArrayLike) -> float:
+    z_C = np.asarray(T_WfromC, dtype=np.float64)[:3, 2]
+    if np.hypot(z_C[0], z_C[1]) < 1e-3:
+        raise InputError("standing pelvis: the camera looks straight down; use yaw_from='feet'")
+    return _yaw_of(z_C)
 
 
 def standing_T_WfromP(
@@ -80,31 +120,67 @@ def standing_T_WfromP(
         raise InputError(
             "standing foot_W: expected finite (2, 3) points of the left and right foot"
         )
-    aa = np.zeros((6, 3)) if joint_aa is None else np.asarray(joint_aa, dtype=np.float64)
-    if aa.shape != (6, 3) or not np.all(np.isfinite(aa)):
-        raise InputError("standing joint_aa: expected finite (6, 3) local rotations")
-    geo = ChainGeometry.build(skeleton, params or PoseCorrectionParams())
-    model = ChainState(
-        R0=R_PfromSMPL[None].copy(), t=np.zeros((1, 3)), a=aa[None], l=geo.lengths[None].copy()
-    )
-    f_model = chain_points(geo, model)["foot"][0]  # body facing +x, R_WfromP = I
+    f_model, J0 = standing_model_feet(skeleton, joint_aa, params)
     if yaw_from == "feet":
         psi = _yaw_of(foot[0] - foot[1]) - _yaw_of(f_model[0] - f_model[1])
     elif yaw_from == "camera":
         if T_WfromC is None:
             raise InputError("standing pelvis: yaw_from='camera' needs a camera pose")
-        z_C = np.asarray(T_WfromC, dtype=np.float64)[:3, 2]
-        if np.hypot(z_C[0], z_C[1]) < 1e-3:
-            raise InputError("standing pelvis: the camera looks straight down; use yaw_from='feet'")
-        psi = _yaw_of(z_C)
+        psi = _camera_yaw(T_WfromC)
     else:
         raise InputError(f"standing pelvis: yaw_from must be 'camera' or 'feet', got {yaw_from!r}")
     Rz = _yaw_rotation(psi)
     t = foot.mean(axis=0) - Rz @ f_model.mean(axis=0)
     T = np.eye(4)
     T[:3, :3] = Rz
-    T[:3, 3] = Rz @ geo.J0 + t
+    T[:3, 3] = Rz @ J0 + t
     return T
+
+
+def complete_standing_feet(
+    foot_W: ArrayLike,
+    skeleton: LowerBodySkeleton,
+    T_WfromC: ArrayLike,
+    marker_height_m: float,
+    behind_camera_m: float,
+    params: PoseCorrectionParams | None = None,
+) -> tuple[FloatArray, str | None]:
+    """Standing foot points (2, 3) with the feet that were not seen (NaN rows of ``foot_W``,
+    left then right) placed, and a sentence saying what was placed (None: nothing).
+
+    One foot missing: beside the other, offset by the standing skeleton's right-to-left (or
+    left-to-right) foot vector turned to the camera's heading, at the seen foot's height. Both
+    missing: their midpoint ``behind_camera_m`` behind the camera (the standing ``T_WfromC``,
+    along its optical axis projected on the floor), at ``marker_height_m``, spread by the
+    skeleton's stance width across that heading.
+    """
+    foot = np.array(foot_W, dtype=np.float64)
+    if foot.shape != (2, 3):
+        raise InputError("standing foot_W: expected (2, 3) points of the left and right foot")
+    missing = [i for i in range(2) if not np.all(np.isfinite(foot[i]))]
+    if not missing:
+        return foot, None
+    f_model, _ = standing_model_feet(skeleton, params=params)
+    T = np.asarray(T_WfromC, dtype=np.float64)
+    Rz = _yaw_rotation(_camera_yaw(T))
+    if len(missing) == 1:
+        lost = missing[0]
+        seen = 1 - lost
+        foot[lost] = foot[seen] + Rz @ (f_model[lost] - f_model[seen]) * [1.0, 1.0, 0.0]
+        return foot, (
+            f"the {SIDES[lost]} foot was not seen while standing: placed beside the "
+            f"{SIDES[seen]} foot at the skeleton's stance width"
+        )
+    forward = Rz[:, 0]
+    middle = T[:3, 3] - behind_camera_m * forward
+    for i in range(2):
+        foot[i] = middle + Rz @ (f_model[i] - f_model.mean(axis=0))
+        foot[i, 2] = marker_height_m
+    return foot, (
+        f"neither foot was seen while standing: the standing feet are placed "
+        f"{behind_camera_m:.2f} m behind the camera (pipeline.standing_feet_behind_camera_m); "
+        f"the pelvis position is only as good as that guess"
+    )
 
 
 def estimate_T_PfromC(T_WfromC: ArrayLike, T_WfromP: ArrayLike) -> PelvisExtrinsic:
