@@ -147,9 +147,8 @@ def _one_line(exc: pytest.ExceptionInfo, path: Path) -> None:
 @pytest.mark.parametrize(
     ("x", "match"),
     [
-        (np.zeros((6, H, W), np.float32), r"expects shape \('batch', 6, 40, 56\), given \(6, 40"),
+        (np.zeros((6, H, W), np.float32), r"expects shape \('batch', 6, 'H', 'W'\), given \(6, 40"),
         (np.zeros((1, 3, H, W), np.float32), "expects shape"),
-        (np.zeros((1, 6, H + 1, W), np.float32), "expects shape"),
         (np.zeros((0, 6, H, W), np.float32), "empty"),
         (np.zeros((1, 6, H, W), np.complex64), "dtype complex64"),
         (np.zeros((1, 6, H, W), bool), "dtype bool"),

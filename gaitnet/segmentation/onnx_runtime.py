@@ -44,6 +44,7 @@ from gaitnet.segmentation.channels import (
     RGB_STD,
     input_channels,
 )
+from gaitnet.segmentation.frame_windows import windowed_logits
 
 if TYPE_CHECKING:  # PyTorch is imported only to export (module docstring)
     import torch
@@ -251,10 +252,26 @@ class OnnxSegmenter:
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """Logits (batch, classes, H, W) float32 for ``x`` (batch, C, H, W) in [0, 1] (with
-        :attr:`flip_average`, the mean over the frame and its mirror image, in one run)."""
-        feed = check_input(
-            x, self.path, self.input_name, self.input_shape, labels=("batch", "C", "H", "W")
-        )
+        :attr:`flip_average`, the mean over the frame and its mirror image, in one run).
+
+        Frames of another size than a model exported for one size are scaled to the model's
+        height and run in overlapping windows across their width
+        (:mod:`gaitnet.segmentation.frame_windows`)."""
+        any_size = (*self.input_shape[:2], None, None)
+        feed = check_input(x, self.path, self.input_name, any_size, labels=("batch", "C", "H", "W"))
+        height, width = self.height, self.width
+        if height is not None and width is not None and feed.shape[2:] != (height, width):
+            return windowed_logits(self._run, feed, height, width)
+        if (height is not None and feed.shape[2] != height) or (
+            width is not None and feed.shape[3] != width
+        ):  # one fixed dimension: no rule to scale by
+            check_input(
+                feed, self.path, self.input_name, self.input_shape, ("batch", "C", "H", "W")
+            )
+        return self._run(feed)
+
+    def _run(self, feed: np.ndarray) -> np.ndarray:
+        """The network's logits for a checked batch of the model's size."""
         batch = feed.shape[0]
         if self.flip_average:
             feed = np.concatenate([feed, feed[..., ::-1]])
