@@ -294,3 +294,40 @@ def test_feet_unseen_while_standing_are_placed_behind_the_camera(
     shift = pelvis[0.3] - pelvis[0.1]
     np.testing.assert_allclose(shift[:2], -0.2 * heading, atol=1e-9)
     assert abs(shift[2]) < 1e-9
+
+
+def test_frames_after_the_first_are_sided_with_their_midline(
+    tiny_sim_session: Path, monkeypatch
+) -> None:
+    """The first ``feet.midline_frames`` frames are segmented with the configured parameters;
+    every later one with ``lateral_offset_m`` set to the median of their pair midpoints,
+    whatever the number of segmentation threads."""
+    import gaitnet.pipeline.infer as infer
+    from gaitnet.config import load_config
+    from gaitnet.pipeline.foot_points import FrameFeet
+
+    class NoSegmenter:
+        arch, input_scale, path = "rgb", 0.5, Path("none")
+
+    for workers in (1, 2):
+        offsets: dict[int, float] = {}
+
+        def spy(frame, K, T_WfromC, segmenter, keypoint, hha, params, *args, seen=offsets):
+            seen[frame.index] = params.lateral_offset_m
+            labels = np.zeros(frame.depth_m.shape, np.uint8)
+            return FrameFeet(np.full((2, 3), np.nan), labels, 2, 0.01 * frame.index**2)
+
+        monkeypatch.setattr(infer, "measure_feet", spy)
+        keys = [
+            "vio.smoother.enabled=false",
+            "feet.midline_frames=8",
+            "feet.lateral_offset_m=0.3",
+            f"pipeline.workers={workers}",
+        ]
+        cfg = load_config(InferConfig, None, keys)
+        obs = infer.observe(open_session(tiny_sim_session), cfg, segmenter=NoSegmenter())  # type: ignore[arg-type]
+        indices = sorted(offsets)
+        assert len(indices) == len(obs.t_ns) > 8
+        median = float(np.median([0.01 * i**2 for i in indices[:8]]))  # the later ones ignored
+        assert [offsets[i] for i in indices[:8]] == [0.3] * 8
+        np.testing.assert_allclose([offsets[i] for i in indices[8:]], median)

@@ -168,3 +168,35 @@ def test_network_input_is_the_channel_planes_over_255(arch: str) -> None:
     x = network_input(arch, rgb, hha)
     assert x.dtype == np.float32 and x.flags.c_contiguous
     np.testing.assert_allclose(x, expected, rtol=1e-6)
+
+
+def test_frames_after_the_first_are_sided_with_their_midline(
+    tmp_path: Path, tiny_sim_session: Path, tiny_model: Path, monkeypatch
+) -> None:
+    """``gaitnet segment`` sides the frames after the first ``midline_frames`` with the median
+    midpoint of the feet pairs in those (gaitnet.segmentation.midline)."""
+    import gaitnet.segmentation.segment_session as seg
+    from gaitnet.segmentation.postprocess import FootDetection, FootKeypointParams
+
+    used: list[float] = []
+
+    def spy(labels, depth_m, K, params, **kwargs) -> list[FootDetection]:
+        k = len(used)
+        used.append(params.lateral_offset_m)
+        empty = np.zeros(labels.shape, bool)
+        px = {name: (1.0, 1.0) for name in ("top", "mid", "bottom")}
+        pts = dict.fromkeys(px)
+        return [  # a pair sided apart, its midpoint 0.01 k on the camera's scale
+            FootDetection("left", px, pts, 10, 0.01 * k + 0.1 - 0.2, empty),  # type: ignore[arg-type]
+            FootDetection("right", px, pts, 9, 0.01 * k - 0.1 - 0.2, empty),  # type: ignore[arg-type]
+        ]
+
+    monkeypatch.setattr(seg, "foot_keypoints", spy)
+    params = FootKeypointParams(midline_frames=6, lateral_offset_m=0.2)
+    session = open_session(tiny_sim_session)
+    seg.segment_session(
+        session, OnnxSegmenter(tiny_model), tmp_path / "out", keypoint_params=params
+    )
+    assert len(used) == len(session) > 6
+    assert used[:6] == [0.2] * 6
+    np.testing.assert_allclose(used[6:], np.median(0.01 * np.arange(6)))

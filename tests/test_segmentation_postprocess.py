@@ -11,6 +11,7 @@ import pytest
 
 from gaitnet.config import load_config
 from gaitnet.errors import InputError
+from gaitnet.segmentation.midline import MIN_PAIRS, MidlineEstimate, pair_midpoint
 from gaitnet.segmentation.postprocess import (
     FootKeypointParams,
     foot_keypoints,
@@ -345,3 +346,47 @@ def test_two_feet_merged_into_one_blob_are_split() -> None:
     assert len(foot_keypoints(one, one_depth, K, gravity_C=g)) == 1
     with pytest.raises(ValueError, match="split_width_m"):
         FootKeypointParams(split_width_m=-0.1)
+
+
+def test_the_midline_from_the_standing_frames_sides_a_lone_foot() -> None:
+    """Both feet right of the optical axis while standing (a camera worn to the body's left):
+    their midpoint becomes the midline, and a lone foot right of the axis but left of it is
+    then the left foot."""
+    depth, g = floor_depth()
+    labels = np.zeros((H, W), np.uint8)
+    foot_box(labels, depth, g, 84, 96, 60, 85)
+    foot_box(labels, depth, g, 120, 134, 62, 88)
+    params = FootKeypointParams(split_width_m=0.0, midline_frames=7)
+    pair = foot_keypoints(labels, depth, K, params, gravity_C=g)
+    midpoint = pair_midpoint(pair, params)
+    assert midpoint is not None
+    np.testing.assert_allclose(midpoint, np.mean([f.lateral_m for f in pair]))
+    assert midpoint < -0.1  # well right of the axis
+    moved = FootKeypointParams(split_width_m=0.0, lateral_offset_m=0.05)  # on the camera's scale
+    assert pair_midpoint(foot_keypoints(labels, depth, K, moved, gravity_C=g), moved) == (
+        pytest.approx(midpoint)
+    )
+    estimate = MidlineEstimate(params)
+    for k in range(MIN_PAIRS - 1):
+        estimate.add(midpoint + 0.01 * k)
+        assert estimate.offset_m is None and estimate.params() is params
+    estimate.add(None)  # a frame without both feet counts, adds nothing
+    estimate.add(midpoint + 0.01 * (MIN_PAIRS - 1))
+    assert estimate.offset_m == pytest.approx(midpoint + 0.01 * (MIN_PAIRS - 1) / 2)
+    assert estimate.collecting  # 6 of 7 frames
+    estimate.add(midpoint + 1.0)
+    assert not estimate.collecting
+    estimate.add(midpoint + 1.0)  # after the first 7 frames: ignored
+    assert len(estimate.midpoints) == MIN_PAIRS + 1
+    lone = np.zeros((H, W), np.uint8)
+    depth, g = floor_depth()
+    foot_box(lone, depth, g, 80, 90, 60, 85)
+    (foot,) = foot_keypoints(lone, depth, K, params, gravity_C=g)
+    assert foot.side == "right" and pair_midpoint([foot], params) is None
+    (foot,) = foot_keypoints(lone, depth, K, estimate.params(), gravity_C=g)
+    assert foot.side == "left"
+    close = FootKeypointParams(split_width_m=0.0, min_separation_m=1.0)
+    assert (
+        pair_midpoint(foot_keypoints(labels, *floor_depth()[:1], K, close, gravity_C=g), close)
+        is None
+    )

@@ -19,6 +19,7 @@ import numpy as np
 from gaitnet.geometry.floor_plane import FloorPlane
 from gaitnet.io.types import Frame
 from gaitnet.segmentation.hha import HhaParams, hha_encode, hha_stride
+from gaitnet.segmentation.midline import pair_midpoint
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
 from gaitnet.segmentation.postprocess import (
     FootKeypointParams,
@@ -37,11 +38,13 @@ class FrameFeet:
     """One frame's measured feet: ``foot_W`` (2, 3) world points of the left and right foot
     (a row of NaN where not seen), the label map after the post-processing (foot pixels only
     where a foot was kept: :func:`~gaitnet.segmentation.postprocess.kept_feet_labels`) and the
-    number of foot blobs."""
+    number of foot blobs, and the midpoint of the two feet along the camera's left axis where
+    they were sided apart (:func:`gaitnet.segmentation.midline.pair_midpoint`; else None)."""
 
     foot_W: np.ndarray
     labels: np.ndarray
     n_blobs: int
+    pair_midpoint_m: float | None = None
 
 
 def floor_in_camera(T_WfromC: np.ndarray) -> FloorPlane:
@@ -83,4 +86,6 @@ def measure_feet(
             side = SIDES[int(np.argmin(np.linalg.norm(predicted_W - p_W, axis=1)))]
         if side in SIDES and np.isnan(foot_W[SIDES.index(side), 0]):
             foot_W[SIDES.index(side)] = p_W
-    return FrameFeet(foot_W=foot_W, labels=kept_feet_labels(labels, feet), n_blobs=len(feet))
+    return FrameFeet(
+        foot_W, kept_feet_labels(labels, feet), len(feet), pair_midpoint(feet, feet_params)
+    )

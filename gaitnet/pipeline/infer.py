@@ -56,7 +56,9 @@ from gaitnet.pipeline.pose_residuals import ChainGeometry, ChainState, chain_poi
 from gaitnet.pipeline.pose_tracking import track_poses
 from gaitnet.pipeline.pose_types import FrameMeasurements, PoseState, R_PfromSMPL
 from gaitnet.pipeline.swing_fill import swing_fill
+from gaitnet.segmentation.midline import MidlineEstimate
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
+from gaitnet.segmentation.postprocess import FootKeypointParams
 from gaitnet.vio.result import VioResult
 from gaitnet.vio.run import run_vio
 
@@ -219,16 +221,22 @@ def observe(
     frame_ns: list[int] = []
     pending: deque[Future] = deque()
 
-    def one(frame: Frame, T_WfromC: np.ndarray) -> tuple[int, FrameFeet, float]:
+    midline = MidlineEstimate(cfg.feet)
+    feet_params = [cfg.feet]  # the later frames': once the first have given the midline
+
+    def one(
+        frame: Frame, T_WfromC: np.ndarray, params: FootKeypointParams
+    ) -> tuple[int, FrameFeet, float]:
         tic = time.thread_time()
         feet = measure_feet(
-            frame, K, T_WfromC, segmenter, cfg.pipeline.foot_keypoint, cfg.hha, cfg.feet
+            frame, K, T_WfromC, segmenter, cfg.pipeline.foot_keypoint, cfg.hha, params
         )
         return frame.t_ns, feet, time.thread_time() - tic
 
     def take_until(n_left: int) -> None:
         while len(pending) > n_left:
             t_ns, feet, cpu_s = pending.popleft().result()
+            midline.add(feet.pair_midpoint_m)
             feet_f.append(feet.foot_W)
             frame_ns.append(t_ns)
             timings["segmenter_cpu"] += cpu_s
@@ -239,8 +247,16 @@ def observe(
     try:
 
         def on_frame(frame: Frame, T_WfromC: np.ndarray) -> None:
+            if len(T_filter) == cfg.feet.midline_frames:  # the first frames are all in
+                take_until(0)
+                feet_params[0] = midline.params()
+                if midline.offset_m is not None:
+                    log.info(
+                        "body midline %.3f m left of the camera (from %d frames with both feet)",
+                        midline.offset_m, len(midline.midpoints),
+                    )  # fmt: skip
             T_filter.append(T_WfromC.copy())
-            pending.append(pool.submit(one, frame, T_WfromC.copy()))
+            pending.append(pool.submit(one, frame, T_WfromC.copy(), feet_params[0]))
             take_until(2 * workers)
 
         t0 = time.perf_counter()

@@ -51,7 +51,8 @@ treated as background) and the aligned depth image into one :class:`FootDetectio
 
    The rule assumes a camera worn at the middle of the waist looking forward-down; it fails
    where a foot crosses the body's midline (cross-over steps, turning on the spot), where the
-   camera is worn off-centre (set ``lateral_offset_m``) or yawed so far that the projected
+   camera is worn off-centre (``lateral_offset_m``, which ``gaitnet segment`` and ``gaitnet
+   infer`` estimate from the first frames: ``midline_frames``) or yawed so far that the projected
    optical axis misses the walking direction by more than the feet's half-spacing over their
    distance, and where a foot turned sideways spreads wider than ``split_width_m`` (it is
    split in two).
@@ -127,6 +128,10 @@ class FootKeypointParams:
     feet wrong: the lone foot's own leg is often out of view and the other leg touches it."""
     lateral_offset_m: float = 0.0
     """The body's midline along the camera's left axis [m] (a camera worn off-centre)."""
+    midline_frames: int = 30
+    """``gaitnet segment`` and ``gaitnet infer`` estimate ``lateral_offset_m`` from the frames
+    among the first this many where both feet are sided apart (standing at the start), and
+    side the later frames with it (:mod:`gaitnet.segmentation.midline`); 0: never."""
     max_distance_m: float = 1.0
     """A foot whose mid point lies farther than this from the camera along the floor (measured
     perpendicular to up) is not a foot but something on the floor ahead that the segmenter took
@@ -157,6 +162,7 @@ class FootKeypointParams:
         check_range("min_separation_m", self.min_separation_m, 0.0, 10.0, " m")
         check_range("min_lateral_m", self.min_lateral_m, 0.0, 10.0, " m")
         check_range("lateral_offset_m", self.lateral_offset_m, -10.0, 10.0, " m")
+        check_int_range("midline_frames", self.midline_frames, 0, 100_000)
         check_range("split_width_m", self.split_width_m, 0.0, 10.0, " m")
         if not self.max_distance_m > 0.1:  # also refuses NaN; inf is allowed
             raise ValueError(f"max_distance_m must be > 0.1 m, got {self.max_distance_m!r}")

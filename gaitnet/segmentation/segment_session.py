@@ -43,6 +43,7 @@ from gaitnet.io.contact_sheet import colourise_labels, contact_sheet, write_png
 from gaitnet.io.images import encode_png
 from gaitnet.io.types import ImuSamples, SessionSource
 from gaitnet.segmentation.hha import HhaParams, find_floor, hha_encode, hha_stride
+from gaitnet.segmentation.midline import MidlineEstimate, pair_midpoint
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
 from gaitnet.segmentation.postprocess import (
     FootKeypointParams,
@@ -160,6 +161,7 @@ def segment_session(
     """Segment every frame of ``session`` into ``out_dir`` (module docstring)."""
     hha_params = hha_params or HhaParams()
     keypoint_params = keypoint_params or FootKeypointParams()
+    midline = MidlineEstimate(keypoint_params)  # the first frames side the later ones
     options = options or SegmentOptions()
     calib = session.calibration
     K = calib.color.K
@@ -193,6 +195,10 @@ def segment_session(
             feet = foot_keypoints(
                 labels, frame.depth_m, K, keypoint_params, gravity_C=gravity, plane=plane
             )
+            if midline.collecting:
+                midline.add(pair_midpoint(feet, keypoint_params))
+                if not midline.collecting:
+                    keypoint_params = midline.params()
             if not options.raw_labels:
                 labels = kept_feet_labels(labels, feet)
             t3 = time.perf_counter()
