@@ -574,6 +574,53 @@ def test_unseen_standing_feet_are_placed_from_the_skeleton_and_the_camera() -> N
 # --- predict-correct loop -------------------------------------------------------------------
 
 
+def test_track_poses_resamples_the_window_to_the_predictors_rate() -> None:
+    """A body whose joints turn at a constant rate, frames 1, 2 and 3.5 predictor steps apart,
+    and a predictor that carries the window's last step on: with the frame times, the window
+    is the motion sampled one predictor step apart and every prior is the truth at the frame's
+    time (so is every corrected pose); one step apart, the same as frame by frame. (No
+    hinge or range-of-motion terms: the made-up motion turns every joint about every axis.)"""
+    par = PoseCorrectionParams(knee_hinge=False, rom_limits=False)
+    dt = 1 / 30
+    rate = np.zeros(21)
+    rate[3:] = 0.4 * np.sin(np.arange(18))  # rad/s on every joint axis
+    v = np.array([1.1, 0.2, 0.0])
+
+    def truth(t: float) -> PoseState:
+        return PoseState(TRUE.pose + rate * t, TRUE.trans + v * t)
+
+    windows: list[np.ndarray] = []
+
+    def carry_on(window: np.ndarray) -> np.ndarray:
+        windows.append(window)
+        step = window[-1] - window[-2]
+        return np.stack([window[-1] + k * step for k in range(1, 5)])
+
+    start = [truth(-k * dt) for k in (3, 2, 1)]
+    for spacing in (1.0, 2.0, 3.5):
+        t_s = spacing * dt * np.arange(6)
+        frames = [exact_measurements(truth(t), par) for t in t_s]
+        windows.clear()
+        out, priors = track_poses(carry_on, start, frames, SKEL, par, t_s, dt)
+        for w in windows:
+            step = np.broadcast_to(rate[3:] * dt, (len(w) - 1, 18))
+            np.testing.assert_allclose(np.diff(w[:, 3:], axis=0), step, atol=1e-9)
+        for o, prior, t in zip(out, priors, t_s, strict=True):
+            np.testing.assert_allclose(prior.pose[3:], truth(t).pose[3:], atol=1e-9)
+            np.testing.assert_allclose(prior.trans, truth(t).trans, atol=1e-12)
+            np.testing.assert_allclose(o.pose, truth(t).pose, atol=1e-7)
+    # frames exactly one step apart: the same as frame by frame without times
+    t_s = dt * np.arange(6)
+    frames = [exact_measurements(truth(t), par) for t in t_s]
+    timed, _ = track_poses(carry_on, start, frames, SKEL, par, t_s, dt)
+    by_frame, _ = track_poses(carry_on, start, frames, SKEL, par)
+    for a, b in zip(timed, by_frame, strict=True):
+        np.testing.assert_allclose(a.pose, b.pose, atol=1e-9)
+        np.testing.assert_allclose(a.trans, b.trans, atol=1e-12)
+    with pytest.raises(InputError, match="frame times"):
+        track_poses(carry_on, start, frames, SKEL, par, t_s[::-1], dt)
+
+
 def test_denormalise_root_undoes_heading_normalisation() -> None:
     rng = np.random.default_rng(11)
     root = np.stack([so3_log(so3_exp([0, 0, y]) @ R_PfromSMPL) for y in rng.uniform(-3, 3, 5)])

@@ -40,6 +40,7 @@ import numpy as np
 from gaitnet.errors import InputError, SessionError
 from gaitnet.geometry import so3_exp, so3_log
 from gaitnet.io.types import Frame, SessionSource
+from gaitnet.motion.amass import TARGET_FPS
 from gaitnet.motion.onnx_runtime import OnnxPredictor
 from gaitnet.motion.skeleton import LowerBodySkeleton, builtin_skeleton, forward_kinematics
 from gaitnet.pipeline.config import REFERENCE_HEIGHT_M, InferConfig
@@ -363,10 +364,18 @@ def reconstruct(
         measurements = wrap(measurements, n)
 
     def predict(window: np.ndarray) -> np.ndarray:
-        nxt = predictor.predict_future(window[None].astype(np.float32))[0, 0]
-        return nxt.astype(np.float64)
+        return predictor.predict_future(window[None].astype(np.float32))[0].astype(np.float64)
 
-    corrected, _ = track_poses(predict, start, measurements, skeleton, correction)  # type: ignore[arg-type]
+    dt = 1.0 / TARGET_FPS  # the predictor's training rate: its window is resampled to it
+    corrected, _ = track_poses(
+        predict,
+        start,
+        measurements,
+        skeleton,
+        correction,
+        vio.t_s,
+        dt,  # type: ignore[arg-type]
+    )
     poses = np.stack([c.pose for c in corrected])
     trans = np.stack([c.trans for c in corrected])
     if cfg.pipeline.gap_fill != "none":
@@ -385,7 +394,7 @@ def reconstruct(
             wrap = bar("pose, gaps filled")
             if wrap is not None:
                 again = wrap(again, n)
-            corrected, _ = track_poses(predict, start, again, skeleton, correction)  # type: ignore[arg-type]
+            corrected, _ = track_poses(predict, start, again, skeleton, correction, vio.t_s, dt)
             poses = np.stack([c.pose for c in corrected])
             trans = np.stack([c.trans for c in corrected])
     timings["pose"] = time.perf_counter() - t0
