@@ -619,6 +619,8 @@ def test_track_poses_resamples_the_window_to_the_predictors_rate() -> None:
         np.testing.assert_allclose(a.trans, b.trans, atol=1e-12)
     with pytest.raises(InputError, match="frame times"):
         track_poses(carry_on, start, frames, SKEL, par, t_s[::-1], dt)
+    with pytest.raises(InputError, match="frame times"):
+        track_poses(carry_on, start, iter(frames), SKEL, par, t_s[:3], dt)
 
 
 def test_denormalise_root_undoes_heading_normalisation() -> None:

@@ -30,7 +30,7 @@ from __future__ import annotations
 import logging
 import time
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -367,15 +367,8 @@ def reconstruct(
         return predictor.predict_future(window[None].astype(np.float32))[0].astype(np.float64)
 
     dt = 1.0 / TARGET_FPS  # the predictor's training rate: its window is resampled to it
-    corrected, _ = track_poses(
-        predict,
-        start,
-        measurements,
-        skeleton,
-        correction,
-        vio.t_s,
-        dt,  # type: ignore[arg-type]
-    )
+    first_pass: Sequence[FrameMeasurements] = measurements  # type: ignore[assignment]
+    corrected, _ = track_poses(predict, start, first_pass, skeleton, correction, vio.t_s, dt)
     poses = np.stack([c.pose for c in corrected])
     trans = np.stack([c.trans for c in corrected])
     if cfg.pipeline.gap_fill != "none":

@@ -38,6 +38,7 @@ from gaitnet.geometry import invert_T, so3_exp, so3_log
 from gaitnet.motion.skeleton import LowerBodySkeleton
 from gaitnet.pipeline.pose_residuals import ChainGeometry, ChainState, chain_points
 from gaitnet.pipeline.pose_types import PoseCorrectionParams, R_PfromSMPL
+from gaitnet.vio.gait import SIDES
 
 FloatArray = NDArray[np.float64]
 
@@ -49,8 +50,6 @@ __all__ = [
     "standing_T_WfromP",
     "standing_model_feet",
 ]
-
-SIDES = ("left", "right")
 
 
 @dataclass(frozen=True, eq=False)

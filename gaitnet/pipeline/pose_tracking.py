@@ -83,7 +83,7 @@ def track_poses(
     timed = t_s is not None and dt is not None
     if timed:
         t_s = np.asarray(t_s, dtype=np.float64)
-        if len(t_s) != len(measurements) or not (dt > 0 and np.all(np.diff(t_s) > 0)):
+        if not (dt > 0 and np.all(np.diff(t_s) > 0)):
             raise InputError("pose tracking: frame times must increase, one per measurement")
         t_first = float(t_s[0]) if len(t_s) else 0.0
         times = [t_first - dt * (n_past - k) for k in range(n_past)]
@@ -92,7 +92,9 @@ def track_poses(
     first = 0  # the earliest sample the window can still need
     corrected: list[PoseState] = []
     priors: list[PoseState] = []
-    for i, m in enumerate(measurements):
+    for i, m in enumerate(measurements):  # an iterable: a progress bar may wrap it
+        if timed and i >= len(t_s):
+            raise InputError(f"pose tracking: {len(t_s)} frame times for more measurements")
         if timed:
             at = times[-1] - dt * np.arange(n_past - 1, -1, -1)
             while first + 1 < len(times) and times[first + 1] <= at[0]:
