@@ -12,11 +12,13 @@ What a runtime must know is stored in the model's ``metadata_props`` (:data:`MET
 ``gaitnet.model`` = ``segmenter``, the arch, width, input scale, padding, output stride, logit
 bias, class names, the input's channels and the normalisation applied inside the graph.
 
-:class:`OnnxSegmenter` runs such a file on explicit providers with a set thread count; a file
-that is missing, unreadable or not a gaitnet segmenter, and an input of the wrong rank, shape or
-dtype, an empty batch or NaN/inf, are one-line :class:`~gaitnet.io.onnx_session.OnnxInputError`
-s (an :class:`~gaitnet.errors.InputError`) naming the file. Running a model does not import
-PyTorch (only the export does).
+:class:`OnnxSegmenter` runs such a file on explicit providers with a set thread count; frames
+of another size than the model's are scaled and windowed
+(:mod:`gaitnet.segmentation.frame_windows`); a file that is missing, unreadable or not a gaitnet
+segmenter, and an input of the wrong rank, channels or dtype, an empty batch or NaN/inf, are
+one-line :class:`~gaitnet.io.onnx_session.OnnxInputError` s (an
+:class:`~gaitnet.errors.InputError`) naming the file. Running a model does not import PyTorch
+(only the export does).
 """
 
 from __future__ import annotations
