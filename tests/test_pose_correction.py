@@ -485,17 +485,28 @@ def _mount() -> np.ndarray:
     return T
 
 
-@pytest.mark.parametrize("yaw_from", ["camera", "feet"])
-def test_extrinsic_from_standing_frames_known_answer(yaw_from: str) -> None:
-    par = PoseCorrectionParams()
-    psi, where = 0.7, np.array([2.0, -1.0, 0.0])
-    R_WfromP = so3_exp([0.0, 0.0, psi])
-    standing = PoseState(np.r_[so3_log(R_WfromP @ R_PfromSMPL), np.zeros(18)], where)
+STANDING_YAW = 0.7
+
+
+def _standing_body(par: PoseCorrectionParams) -> tuple[np.ndarray, np.ndarray]:
+    """A straight-legged body standing at (2, −1) facing yaw :data:`STANDING_YAW`: its pelvis
+    pose ``T_WfromP`` (4, 4) and its foot points (2, 3) as the correction's model sees them."""
+    R_WfromP = so3_exp([0.0, 0.0, STANDING_YAW])
+    standing = PoseState(
+        np.r_[so3_log(R_WfromP @ R_PfromSMPL), np.zeros(18)], np.array([2.0, -1.0, 0.0])
+    )
     pts = model_points(standing, par)
     T_WfromP = np.eye(4)
     T_WfromP[:3, :3], T_WfromP[:3, 3] = R_WfromP, pts["p_PinW"]
+    return T_WfromP, pts["foot"]
+
+
+@pytest.mark.parametrize("yaw_from", ["camera", "feet"])
+def test_extrinsic_from_standing_frames_known_answer(yaw_from: str) -> None:
+    par = PoseCorrectionParams()
+    T_WfromP, feet = _standing_body(par)
     cams = np.stack([T_WfromP @ _mount()] * 5)
-    T_est = standing_T_WfromP(SKEL, pts["foot"], cams[0], params=par, yaw_from=yaw_from)  # type: ignore[arg-type]
+    T_est = standing_T_WfromP(SKEL, feet, cams[0], params=par, yaw_from=yaw_from)  # type: ignore[arg-type]
     np.testing.assert_allclose(T_est, T_WfromP, atol=1e-10)
     ext = estimate_T_PfromC(cams, T_est)
     np.testing.assert_allclose(ext.T_PfromC, _mount(), atol=1e-10)
@@ -537,14 +548,8 @@ def test_extrinsic_bad_input() -> None:
 
 def test_unseen_standing_feet_are_placed_from_the_skeleton_and_the_camera() -> None:
     par = PoseCorrectionParams()
-    psi, where = 0.7, np.array([2.0, -1.0, 0.0])
-    R_WfromP = so3_exp([0.0, 0.0, psi])
-    standing = PoseState(np.r_[so3_log(R_WfromP @ R_PfromSMPL), np.zeros(18)], where)
-    pts = model_points(standing, par)
-    T_WfromP = np.eye(4)
-    T_WfromP[:3, :3], T_WfromP[:3, 3] = R_WfromP, pts["p_PinW"]
+    T_WfromP, feet = _standing_body(par)
     cam = T_WfromP @ _mount()  # the mount has no yaw: the camera heads along the pelvis's x
-    feet = pts["foot"]
     same, note = complete_standing_feet(feet, SKEL, cam, 0.05, 0.1, par)
     np.testing.assert_array_equal(same, feet)
     assert note is None
@@ -555,7 +560,7 @@ def test_unseen_standing_feet_are_placed_from_the_skeleton_and_the_camera() -> N
         np.testing.assert_allclose(placed, feet, atol=1e-12)
         assert note is not None and ("left", "right")[lost] in note
     # neither seen: the midpoint lies behind_camera_m behind the camera, on its heading
-    heading = np.array([np.cos(psi), np.sin(psi), 0.0])
+    heading = np.array([np.cos(STANDING_YAW), np.sin(STANDING_YAW), 0.0])
     for behind in (0.1, 0.25):
         placed, note = complete_standing_feet(np.full((2, 3), np.nan), SKEL, cam, 0.05, behind, par)
         middle = placed.mean(axis=0)
