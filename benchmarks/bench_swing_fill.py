@@ -19,9 +19,9 @@ walks of the simulator's gait generator written in the same format), resampled t
 (``REAL``: walking clips of the CMU Graphics Lab Motion Capture Database, mocap.cs.cmu.edu,
 in AMASS's SMPL+H G layout, as AMASS distributes them; docs/pipeline.md has the figures.)
 
-Prints the mean and 90th percentile of the fill's error per source, and the heel-off share
-of the cycle measured the same way (the end of a rest to the start of the next, over one
-rest-to-rest cycle), to set beside ``pipeline.swing_heel_off_fraction``.
+Prints the mean and 90th percentile of the fill's error per source, and the share of the
+cycle from the end of a rest to the start of the next (over one rest-to-rest cycle), to set
+beside the template's span (``pipeline.swing_span_offset_s + swing_span_per_cycle · cycle``).
 """
 
 from __future__ import annotations
@@ -81,8 +81,10 @@ def score_clip(path: Path, height_m: float, rest_speed: float) -> dict[str, list
             stance.append(StanceFoot(len(stance), side, t[a], t[b], p[a, :2], np.zeros(2), 1))
         for (a0, b0), (a1, _) in zip(rests, rests[1:], strict=False):
             out["fraction"].append((t[a1] - t[b0]) / (t[a1] - t[a0]))
-    fraction = PipelineParams().swing_heel_off_fraction
-    filled = swing_fill(t, measured, stance, height_m, fraction)
+    params = PipelineParams()
+    filled = swing_fill(
+        t, measured, stance, height_m, params.swing_span_offset_s, params.swing_span_per_cycle
+    )
     for s in range(2):
         unseen = np.isnan(measured[:, s, 0])
         use = unseen & np.isfinite(filled[:, s, 0])

@@ -5,9 +5,11 @@
 Prints the instep marker's mean progress and lift from heel off to the next foot flat
 (:mod:`gaitnet.sim.swing_profile`) over random subjects walking 10 m at 0.8–1.6 m/s, at the 21
 template points, as the arrays ``SWING_PROGRESS`` and ``SWING_LIFT`` of
-``gaitnet/pipeline/swing_fill.py`` (the committed table is this script's output with the
-defaults), with their swing-to-swing spread and the heel-off share of the gait cycle
-(``pipeline.swing_heel_off_fraction``).
+``gaitnet/pipeline/swing_fill.py``, with their swing-to-swing spread and the heel-off share of
+the gait cycle; then the line ``span = a + b · cycle`` through the spans that lay the committed
+template best over each swing at 0.6–1.7 m/s (``SWING_SPAN_OFFSET_S``,
+``SWING_SPAN_PER_CYCLE``: the defaults of ``pipeline.swing_span_offset_s`` and
+``swing_span_per_cycle``). The committed values are this script's output with the defaults.
 """
 
 from __future__ import annotations
@@ -16,8 +18,8 @@ import argparse
 
 import numpy as np
 
-from gaitnet.pipeline.swing_fill import SWING_TAU
-from gaitnet.sim.swing_profile import derive_swing_template
+from gaitnet.pipeline.swing_fill import SWING_PROGRESS, SWING_TAU
+from gaitnet.sim.swing_profile import derive_swing_span, derive_swing_template
 
 
 def _row(values: np.ndarray) -> str:
@@ -39,6 +41,14 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  spread (std)   [{_row(t['lift_std'])}]")
     mean, std = t["fraction"]
     print(f"heel off to next foot flat: {mean:.3f} ± {std:.3f} of the gait cycle")
+    span = derive_swing_span(SWING_TAU, SWING_PROGRESS, seed=args.seed)
+    print(
+        f"span over {int(span['swings'])} swings at 0.6–1.7 m/s: "
+        f"SWING_SPAN_OFFSET_S = {span['offset_s']:.3f}, "
+        f"SWING_SPAN_PER_CYCLE = {span['per_cycle']:.3f} "
+        f"(residual {span['residual_s']:.3f} s; a share of the cycle alone: "
+        f"{span['proportional_residual_s']:.3f} s)"
+    )
     return 0
 
 

@@ -9,6 +9,8 @@ import pytest
 from gaitnet.pipeline.swing_fill import (
     SWING_LIFT,
     SWING_PROGRESS,
+    SWING_SPAN_OFFSET_S,
+    SWING_SPAN_PER_CYCLE,
     SWING_TAU,
     swing_fill,
 )
@@ -16,6 +18,11 @@ from gaitnet.vio.result import StanceFoot
 
 FPS = 30.0
 H = 1.75
+
+
+def _span(cycle: float) -> float:
+    """The template's span for a gait cycle [s], with the default constants."""
+    return SWING_SPAN_OFFSET_S + SWING_SPAN_PER_CYCLE * cycle
 
 
 def _rest(side: str, t0: float, t1: float, x: float) -> StanceFoot:
@@ -38,8 +45,9 @@ def _walk(
 
 
 def test_known_answer_at_heel_off_mid_swing_and_landing() -> None:
-    # rest 1 at x = 0 from 0 to 0.6 s, rest 2 at x = 1.2 m from 1.2 s: cycle 1.2 s, heel off
-    # 0.75 · 1.2 = 0.9 s before the second foot flat → 0.3 s, clamped to the last rest frame 0.6 s
+    # rest 1 at x = 0 from 0 to 0.6 s, rest 2 at x = 1.2 m from 1.2 s: cycle 1.2 s, the swing
+    # starts span(1.2) ≈ 0.87 s before the second foot flat → 0.33 s, clamped to the last rest
+    # frame 0.6 s
     t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)])
     out = swing_fill(t, measured, feet, H)
     gap = (t > 0.6 + 1e-9) & (t < 1.2 - 1e-9)
@@ -57,39 +65,68 @@ def test_known_answer_at_heel_off_mid_swing_and_landing() -> None:
 
 
 def test_heel_off_from_the_cycle_when_the_foot_is_seen_resting_late() -> None:
-    # the first rest is seen until 0.2 s only; cycle 1.6 s: heel off = 1.6 − 0.75 · 1.6 = 0.4 s,
-    # so the foot still rests (progress 0) at 0.4 s and is half-way (τ = 0.5) at 1.0 s
+    # the first rest is seen until 0.2 s only; cycle 1.6 s: the swing starts span(1.6) before
+    # the second foot flat, so the foot still rests (progress 0) then and is half-way (τ = 0.5)
+    # half a span later
     t, measured, feet = _walk([(0.0, 0.2, 0.0), (1.6, 2.5, 1.0)])
     out = swing_fill(t, measured, feet, H)
-    np.testing.assert_allclose(out[int(round(0.4 * FPS)), 0], [0.0, 0.1, 0.01], atol=1e-12)
-    i = int(np.flatnonzero(np.isclose(SWING_TAU, 0.5))[0])
-    np.testing.assert_allclose(out[int(round(1.0 * FPS)), 0, 0], SWING_PROGRESS[i], atol=1e-12)
-    # a smaller heel-off fraction starts the swing later
-    later = swing_fill(t, measured, feet, H, heel_off_fraction=0.6)
-    assert later[int(round(1.0 * FPS)), 0, 0] < out[int(round(1.0 * FPS)), 0, 0]
+    span = _span(1.6)
+    start, mid = 1.6 - span, 1.6 - span / 2
+    k0 = int(np.floor(start * FPS))  # the last frame before the swing starts
+    np.testing.assert_allclose(out[k0, 0], [0.0, 0.1, 0.01], atol=1e-12)
+    k = int(round(mid * FPS))
+    expected = np.interp((t[k] - start) / span, SWING_TAU, SWING_PROGRESS)
+    np.testing.assert_allclose(out[k, 0, 0], expected, atol=1e-12)
+    assert 0.1 < expected < 0.9  # mid-swing
+    # a shorter span (here a proportional one) starts the swing later
+    later = swing_fill(t, measured, feet, H, span_offset_s=0.0, span_per_cycle=0.6)
+    assert later[k, 0, 0] < out[k, 0, 0]
+    np.testing.assert_allclose(
+        later[k, 0, 0],
+        np.interp((t[k] - (1.6 - 0.96)) / 0.96, SWING_TAU, SWING_PROGRESS),
+        atol=1e-12,
+    )
+
+
+def test_the_span_is_a_smaller_share_of_a_longer_cycle() -> None:
+    # the same stride at a 1.0 s and a 1.8 s cycle (the first rest seen only briefly): the
+    # swing starts span(T) before the foot flat, a larger share of the short cycle
+    assert _span(1.0) / 1.0 > _span(1.8) / 1.8
+    for cycle in (1.0, 1.8):
+        t, measured, feet = _walk([(0.0, 0.1, 0.0), (cycle, cycle + 0.5, 1.0)], n=90)
+        out = swing_fill(t, measured, feet, H)
+        start = cycle - _span(cycle)
+        k = int(np.ceil((start + 0.6 * _span(cycle)) * FPS))
+        expected = np.interp((t[k] - start) / _span(cycle), SWING_TAU, SWING_PROGRESS)
+        np.testing.assert_allclose(out[k, 0, 0], expected, atol=1e-12)
 
 
 def test_a_standing_start_takes_the_feet_median_cycle() -> None:
     # standing until 1.4 s, then a foot flat every 1.2 s: the first pair's 2.5 s "cycle" is
-    # replaced by the median 1.2 s, so heel off is 2.5 − 0.9 = 1.6 s, not the last rest frame
+    # replaced by the median 1.2 s, so the swing starts span(1.2) before 2.5 s, not at the
+    # last rest frame
     rests = [(0.0, 1.4, 0.0), (2.5, 3.3, 1.2), (3.7, 4.5, 2.4), (4.9, 5.7, 3.6), (6.1, 6.9, 4.8)]
     t, measured, feet = _walk(rests, n=210)
     out = swing_fill(t, measured, feet, H)
+    span = _span(1.2)
+    start = 2.5 - span
     np.testing.assert_allclose(out[int(round(1.5 * FPS)), 0], [0.0, 0.1, 0.01], atol=1e-12)
-    k = int(round(2.0 * FPS))  # τ = (2.0 − 1.6) / 0.9
-    expected = np.interp(0.4 / 0.9, SWING_TAU, SWING_PROGRESS) * 1.2
+    k = int(round(2.0 * FPS))
+    expected = np.interp((2.0 - start) / span, SWING_TAU, SWING_PROGRESS) * 1.2
     np.testing.assert_allclose(out[k, 0, 0], expected, atol=1e-12)
 
 
 def test_a_long_standing_start_is_filled_only_with_a_typical_cycle() -> None:
     # standing for 4 s (a 4.8 s first "cycle", beyond any stride's), then a foot flat every
-    # 1.2 s: the first swing is filled with the typical cycle, heel off at 4.8 − 0.9 = 3.9 s
+    # 1.2 s: the first swing is filled with the typical cycle, starting span(1.2) before 4.8 s
     steps = [(4.8 + 1.2 * i, 5.6 + 1.2 * i, 1.2 * (i + 1)) for i in range(4)]
     t, measured, feet = _walk([(0.0, 3.5, 0.0), *steps], n=300)
     out = swing_fill(t, measured, feet, H)
+    span = _span(1.2)
+    start = 4.8 - span
     np.testing.assert_allclose(out[int(round(3.8 * FPS)), 0], [0.0, 0.1, 0.01], atol=1e-12)
-    k = int(round(4.2 * FPS))  # τ = (4.2 − 3.9) / 0.9
-    expected = np.interp(0.3 / 0.9, SWING_TAU, SWING_PROGRESS) * 1.2
+    k = int(round(4.2 * FPS))
+    expected = np.interp((4.2 - start) / span, SWING_TAU, SWING_PROGRESS) * 1.2
     np.testing.assert_allclose(out[k, 0, 0], expected, atol=1e-12)
     # with one step after it there is no typical cycle, and the long first pair is not filled
     t, measured, feet = _walk([(0.0, 3.5, 0.0), steps[0]], n=200)
@@ -107,6 +144,9 @@ def test_two_pairs_keep_their_own_cycles() -> None:
     k = int(round(3.5 * FPS))
     expected = 1.2 + np.interp((3.5 - 3.3) / 0.4, SWING_TAU, SWING_PROGRESS) * 1.2
     np.testing.assert_allclose(out[k, 0, 0], expected, atol=1e-12)
+
+    with pytest.raises(ValueError, match="swing_fill"):
+        swing_fill(t, measured[:, :, :2], feet, H)
 
 
 def test_a_missed_rest_leaves_its_two_strides_unfilled() -> None:
@@ -184,3 +224,18 @@ def test_committed_template_is_the_gait_generators() -> None:
     assert (np.abs(fresh["progress"] - SWING_PROGRESS) < spread).all()
     assert np.abs(fresh["lift"] - SWING_LIFT).max() < 0.005
     assert abs(fresh["fraction"][0] - 0.75) < 0.03
+
+
+def test_committed_span_line_is_the_gait_generators() -> None:
+    """A fresh fit on other subjects gives the committed span within a frame at a short and a
+    long cycle, and the line fits the swings better than a share of the cycle does."""
+    from gaitnet.sim.swing_profile import derive_swing_span
+
+    fresh = derive_swing_span(
+        SWING_TAU, SWING_PROGRESS, speeds_mps=(0.6, 0.9, 1.2, 1.5, 1.7), subjects=2, seed=7
+    )
+    assert fresh["swings"] > 60
+    for cycle in (1.0, 1.8):
+        span = fresh["offset_s"] + fresh["per_cycle"] * cycle
+        assert abs(span - _span(cycle)) < 1 / 30
+    assert fresh["residual_s"] < fresh["proportional_residual_s"]

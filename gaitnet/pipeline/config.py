@@ -15,6 +15,7 @@ from typing import ClassVar, Literal
 
 from gaitnet.checks import check_int_range, check_range
 from gaitnet.pipeline.pose_types import PoseCorrectionParams
+from gaitnet.pipeline.swing_fill import SWING_SPAN_OFFSET_S, SWING_SPAN_PER_CYCLE
 from gaitnet.segmentation.hha import HhaParams
 from gaitnet.segmentation.postprocess import FootKeypointParams
 from gaitnet.vio.config import VioConfig
@@ -80,7 +81,11 @@ class PipelineParams:
     # keys of older configs (an ``infer_config.yaml`` of an earlier result) and what took
     # their place: named in the error instead of "unknown key"
     REPLACED_KEYS: ClassVar[dict[str, str]] = {
-        "bridge_gaps": "gap_fill (swing | bridge | none; bridge_gaps: false was none)"
+        "bridge_gaps": "gap_fill (swing | bridge | none; bridge_gaps: false was none)",
+        "swing_heel_off_fraction": (
+            "swing_span_offset_s: 0 and swing_span_per_cycle: <the old fraction> "
+            "(the swing's span is offset + per_cycle · cycle)"
+        ),
     }
 
     foot_keypoint: Literal["top", "mid", "bottom"] = "mid"
@@ -112,10 +117,13 @@ class PipelineParams:
     the next (:mod:`gaitnet.pipeline.swing_fill`), elsewhere as ``bridge``; ``bridge``: the
     first pass's foot, bridged to the frame where the foot is seen again
     (:mod:`gaitnet.pipeline.gap_bridge`); ``none``: the first pass only."""
-    swing_heel_off_fraction: float = 0.75
-    """Time from heel off to the next foot flat as a fraction of the gait cycle, for
-    ``gap_fill: swing`` (heel off at about 31–34 % of the cycle, foot flat at 8–10 % of the
-    next: docs/references.md)."""
+    swing_span_offset_s: float = SWING_SPAN_OFFSET_S
+    """For ``gap_fill: swing``: the template swing starts ``swing_span_offset_s +
+    swing_span_per_cycle · T`` before the next foot flat, ``T`` the gait cycle [s] (the gait
+    generator's swings, ``data/derive_swing_template.py``: 0.74 of a 1.1 s cycle, 0.69 of a
+    1.8 s one)."""
+    swing_span_per_cycle: float = SWING_SPAN_PER_CYCLE
+    """See ``swing_span_offset_s``."""
     marker_offset_m: tuple[float, float, float] = (0.0, -0.011, 0.079)
     """The reported foot point (``feet.csv``, the foot trajectories): the shoe marker over the
     instep, in the ankle frame (SMPL axes: x left, y up, z forward; mirrored for the right
@@ -132,7 +140,8 @@ class PipelineParams:
             raise ValueError(
                 f"pipeline.gap_fill must be swing, bridge or none, got {self.gap_fill!r}"
             )
-        check_range("pipeline.swing_heel_off_fraction", self.swing_heel_off_fraction, 0.5, 0.95)
+        check_range("pipeline.swing_span_offset_s", self.swing_span_offset_s, 0.0, 0.5, " s")
+        check_range("pipeline.swing_span_per_cycle", self.swing_span_per_cycle, 0.3, 0.95)
         if self.subject_height_m != 0:
             check_range("pipeline.subject_height_m", self.subject_height_m, 0.8, 2.3, " m")
         check_range("pipeline.camera_height_fraction", self.camera_height_fraction, 0.3, 0.8)

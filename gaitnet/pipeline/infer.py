@@ -377,8 +377,9 @@ def reconstruct(
         filled = bridge_gaps(_foot_points(geometry, poses, trans), ~np.isnan(measured[:, :, 0]))
         if cfg.pipeline.gap_fill == "swing":
             swing = swing_fill(
-                vio.t_s, measured, vio.stance_feet, height, cfg.pipeline.swing_heel_off_fraction
-            )
+                vio.t_s, measured, vio.stance_feet, height,
+                cfg.pipeline.swing_span_offset_s, cfg.pipeline.swing_span_per_cycle,
+            )  # fmt: skip
             filled = np.where(np.isnan(swing), filled, swing)
         use = ~np.isnan(filled[:, :, 0])
         if use.any():

@@ -13,14 +13,17 @@ walking foot has a stereotyped shape, which this module lays between the two res
 
 - ``p₀``, ``p₁``: the median measured foot point over the frames of each stance (the points
   the correction is given, so the fill is the same kind of point);
-- ``t_FF′``: the next landmark's first frame time; ``t_HO``, heel off of the first stance,
-  ``t_FF′ − c · T`` with ``T`` the landmarks' foot-flat to foot-flat time (one gait cycle;
-  the typical cycle — the median over both feet's pairs but each foot's first, given
+- ``t_FF′``: the next landmark's first frame time; ``t_HO``, where the swing starts,
+  ``t_FF′ − (a + b T)`` with ``T`` the landmarks' foot-flat to foot-flat time (one gait
+  cycle; the typical cycle — the median over both feet's pairs but each foot's first, given
   :data:`MIN_REFERENCES` of them — where the pair's differs from it by more than
   :data:`CYCLE_TOLERANCE`: a standing start, where the first landmark began long before the
-  foot flat, or a landmark first seen late) and
-  ``c`` = ``pipeline.swing_heel_off_fraction`` (0.75: heel off at 31–34 % of the cycle and foot
-  flat at 8–10 % of the next, docs/references.md *Gait phases*), and never before the last
+  foot flat, or a landmark first seen late), ``a`` = ``pipeline.swing_span_offset_s``
+  (:data:`SWING_SPAN_OFFSET_S`) and ``b`` = ``pipeline.swing_span_per_cycle``
+  (:data:`SWING_SPAN_PER_CYCLE`): the line through the span that best lays the template over
+  each generated swing, against its cycle, at 0.6–1.7 m/s (960 swings,
+  :func:`gaitnet.sim.swing_profile.derive_swing_span`; 0.74 of a 1.1 s cycle, 0.69 of a 1.8 s
+  one: a slow foot rolls longer over its toes before it swings), and never before the last
   frame the filter saw the foot resting;
 - ``ρ`` (0 → 1, :data:`SWING_PROGRESS`) and ``λ`` (:data:`SWING_LIFT`, a fraction of the body
   height ``H``): the mean path of the instep marker from heel off to the next foot flat over
@@ -60,6 +63,8 @@ __all__ = [
     "STRIDE_OUTLIER",
     "SWING_LIFT",
     "SWING_PROGRESS",
+    "SWING_SPAN_OFFSET_S",
+    "SWING_SPAN_PER_CYCLE",
     "SWING_TAU",
     "swing_fill",
 ]
@@ -75,6 +80,8 @@ SWING_LIFT = np.array([
     0.0531, 0.0508, 0.0480, 0.0451, 0.0400, 0.0318, 0.0220, 0.0113, 0.0023, 0.0,
 ])
 # fmt: on
+SWING_SPAN_OFFSET_S = 0.138  # span = a + b · cycle [s] (derive_swing_span, seed 0)
+SWING_SPAN_PER_CYCLE = 0.614
 CYCLE_RANGE_S = (0.5, 3.0)  # foot flat to foot flat of one foot, slow to fast walking
 CYCLE_TOLERANCE = 0.25  # a cycle further than this from the typical one is not the pair's own
 STRIDE_OUTLIER = 1.5  # a stride this many times the typical one spans a missed landmark
@@ -105,7 +112,8 @@ def swing_fill(
     measured: np.ndarray,
     stance_feet: Sequence[StanceFoot],
     body_height_m: float,
-    heel_off_fraction: float = 0.75,
+    span_offset_s: float = SWING_SPAN_OFFSET_S,
+    span_per_cycle: float = SWING_SPAN_PER_CYCLE,
 ) -> np.ndarray:
     """Foot points (n, 2, 3) for the unseen frames of each foot's swings (module docstring),
     NaN elsewhere. ``t_s`` (n,) frame times, ``measured`` (n, 2, 3) the measured foot points
@@ -141,7 +149,8 @@ def swing_fill(
                 if cycle > typical_cycle and not w.first:
                     continue  # likewise
                 cycle = typical_cycle  # a standing start, or a rest first seen late
-        heel_off = max(w.after.t_first_s - heel_off_fraction * cycle, w.before.t_last_s)
+        span_s = span_offset_s + span_per_cycle * cycle
+        heel_off = max(w.after.t_first_s - span_s, w.before.t_last_s)
         window = (t_s > w.before.t_last_s) & (t_s < w.after.t_first_s) & ~seen[:, w.side]
         if not window.any():
             continue

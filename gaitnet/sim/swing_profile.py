@@ -13,17 +13,50 @@ For one foot between heel off ``HO`` of stance ``i`` and foot flat ``FF'`` of st
 - progress ``ρ(τ) = (m(t) − m(HO))·u / |d_xy|`` (0 → 1 along the step);
 - lift ``λ(τ) = (m_z(t) − m_z(HO) − ρ(τ) d_z) / H`` (height above the straight line between
   the two rests, as a fraction of the body height ``H``).
+
+The fill also needs the template's time span ``FF' − t₀`` for a gait cycle ``T`` (``FF − FF'``
+of one foot): :func:`swing_spans` fits, per swing, the span ``s`` for which the template laid
+over ``[FF' − s, FF']`` best matches the marker's progress from ``FF`` to ``FF'`` (least
+squares), and :func:`derive_swing_span` fits ``s = a + b T`` over walks at all the
+generator's speeds (slow walking rolls longer over the forefoot before the swing, so the span
+is a smaller share of a long cycle than of a short one).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
+from scipy.optimize import minimize_scalar
 
 from gaitnet.sim.gait import GaitConfig, Walk, generate_walk
 from gaitnet.sim.scene import SIDES
 from gaitnet.sim.subject import sample_subject
 
-__all__ = ["derive_swing_template", "swing_profiles"]
+__all__ = ["derive_swing_span", "derive_swing_template", "swing_profiles", "swing_spans"]
+
+
+def _swings(walk: Walk) -> Iterator[tuple[int, float, float, float]]:
+    """``(foot, FF, HO, FF')`` of every swing of ``walk`` between two foot flats of one foot
+    whose instep marker moves at least 0.2 m (a shorter move is a shuffle, not a swing)."""
+    for s, side in enumerate(SIDES):
+        ev = walk.events[side]
+        for i in range(len(ev.ho_s) - 1):
+            ff0, ho, ff1 = ev.ff_s[i], ev.ho_s[i], ev.ff_s[i + 1]
+            if not np.isfinite([ff0, ho, ff1]).all() or not ff0 < ho < ff1:
+                continue
+            d = np.diff(walk.marker_points(np.array([ho, ff1]))[:, s], axis=0)[0]
+            if np.hypot(d[0], d[1]) >= 0.2:
+                yield s, float(ff0), float(ho), float(ff1)
+
+
+def _progress(walk: Walk, foot: int, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Progress (len(t),) of ``foot``'s marker at times ``t`` along its move from ``t[0]`` to
+    ``t[-1]`` (module docstring), and that move (3,)."""
+    m = walk.marker_points(t)[:, foot]
+    d = m[-1] - m[0]
+    step = float(np.hypot(d[0], d[1]))
+    return (m - m[0]) @ (np.array([d[0], d[1], 0.0]) / step) / step, d
 
 
 def swing_profiles(walk: Walk, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -32,22 +65,12 @@ def swing_profiles(walk: Walk, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     the gait cycle (foot flat to foot flat) that heel off precedes the next foot flat by."""
     tau = np.asarray(tau, dtype=np.float64)
     progress, lift, fraction = [], [], []
-    for s, side in enumerate(SIDES):
-        ev = walk.events[side]
-        for i in range(len(ev.ho_s) - 1):
-            ff0, ho, ff1 = ev.ff_s[i], ev.ho_s[i], ev.ff_s[i + 1]
-            if not np.isfinite([ff0, ho, ff1]).all() or not ff0 < ho < ff1:
-                continue
-            m = walk.marker_points(ho + tau * (ff1 - ho))[:, s]
-            d = m[-1] - m[0]
-            step = float(np.hypot(d[0], d[1]))
-            if step < 0.2:  # a shuffle, not a swing
-                continue
-            u = np.array([d[0], d[1], 0.0]) / step
-            rho = (m - m[0]) @ u / step
-            progress.append(rho)
-            lift.append((m[:, 2] - m[0, 2] - rho * d[2]) / walk.subject.height_m)
-            fraction.append((ff1 - ho) / (ff1 - ff0))
+    for s, ff0, ho, ff1 in _swings(walk):
+        rho, d = _progress(walk, s, ho + tau * (ff1 - ho))
+        z = walk.marker_points(ho + tau * (ff1 - ho))[:, s, 2]
+        progress.append(rho)
+        lift.append((z - z[0] - rho * d[2]) / walk.subject.height_m)
+        fraction.append((ff1 - ho) / (ff1 - ff0))
     if not progress:
         return np.empty((0, len(tau))), np.empty((0, len(tau))), np.empty(0)
     return np.array(progress), np.array(lift), np.array(fraction)
@@ -81,4 +104,60 @@ def derive_swing_template(
         "lift_std": lift.std(axis=0),
         "fraction": np.array([fraction.mean(), fraction.std()]),
         "swings": np.array([len(progress)]),
+    }
+
+
+def swing_spans(
+    walk: Walk, tau: np.ndarray, progress: np.ndarray, samples: int = 100
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(cycles, spans)`` (m,) of every swing of ``walk``: the cycle ``FF' − FF`` and the span
+    ``s`` in ``[0.3, 1] · cycle`` minimising ``Σ (ρ̂(τ_k) − ρ(t_k))²`` over ``samples`` times
+    ``t_k`` from ``FF`` to ``FF'``, with ``ρ̂`` the template ``progress`` at ``tau`` and
+    ``τ_k = clip((t_k − FF' + s) / s, 0, 1)`` (module docstring)."""
+    cycles, spans = [], []
+    for s, ff0, _, ff1 in _swings(walk):
+        t = np.linspace(ff0, ff1, samples)
+        rho, _ = _progress(walk, s, t)
+
+        def cost(span: float, t: np.ndarray = t, rho: np.ndarray = rho, ff1: float = ff1) -> float:
+            fit = np.interp(np.clip((t - ff1 + span) / span, 0.0, 1.0), tau, progress)
+            return float(np.sum((fit - rho) ** 2))
+
+        cycle = ff1 - ff0
+        best = minimize_scalar(cost, bounds=(0.3 * cycle, cycle), method="bounded")
+        cycles.append(cycle)
+        spans.append(float(best.x))
+    return np.array(cycles), np.array(spans)
+
+
+def derive_swing_span(
+    tau: np.ndarray,
+    progress: np.ndarray,
+    speeds_mps: tuple[float, ...] = (0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.4, 1.5, 1.6, 1.7),
+    subjects: int = 5,
+    seed: int = 0,
+    walk_length_m: float = 10.0,
+) -> dict[str, float]:
+    """The line ``span = offset_s + per_cycle · cycle`` fitted (least squares) to
+    :func:`swing_spans` over ``subjects`` random subjects walking ``walk_length_m`` at each of
+    ``speeds_mps`` (the generator's whole range by default): ``offset_s``, ``per_cycle``, the
+    residual's standard deviation ``residual_s`` and, for comparison, that of the best line
+    through the origin (``span = c · cycle``) ``proportional_residual_s``, and ``swings``."""
+    rng = np.random.default_rng(seed)
+    cycles, spans = [], []
+    for speed in speeds_mps:
+        cfg = GaitConfig(speed_mps=float(speed), walk_length_m=float(walk_length_m))
+        for _ in range(subjects):
+            c, s = swing_spans(generate_walk(sample_subject(rng), cfg, rng), tau, progress)
+            cycles.append(c)
+            spans.append(s)
+    cycle, span = np.concatenate(cycles), np.concatenate(spans)
+    per_cycle, offset = np.polyfit(cycle, span, 1)
+    c = float(cycle @ span / (cycle @ cycle))
+    return {
+        "offset_s": float(offset),
+        "per_cycle": float(per_cycle),
+        "residual_s": float(np.std(span - offset - per_cycle * cycle)),
+        "proportional_residual_s": float(np.std(span - c * cycle)),
+        "swings": float(len(cycle)),
     }
