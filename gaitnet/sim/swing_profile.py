@@ -14,7 +14,7 @@ For one foot between heel off ``HO`` of stance ``i`` and foot flat ``FF'`` of st
 - lift ``λ(τ) = (m_z(t) − m_z(HO) − ρ(τ) d_z) / H`` (height above the straight line between
   the two rests, as a fraction of the body height ``H``).
 
-The fill also needs the template's time span ``FF' − t₀`` for a gait cycle ``T`` (``FF − FF'``
+The fill also needs the template's time span ``FF' − t₀`` for a gait cycle ``T`` (``FF' − FF``
 of one foot): :func:`swing_spans` fits, per swing, the span ``s`` for which the template laid
 over ``[FF' − s, FF']`` best matches the marker's progress from ``FF`` to ``FF'`` (least
 squares), and :func:`derive_swing_span` fits ``s = a + b T`` over walks at all the
