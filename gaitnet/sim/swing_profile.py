@@ -52,11 +52,11 @@ def _swings(walk: Walk) -> Iterator[tuple[int, float, float, float]]:
 
 def _progress(walk: Walk, foot: int, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Progress (len(t),) of ``foot``'s marker at times ``t`` along its move from ``t[0]`` to
-    ``t[-1]`` (module docstring), and that move (3,)."""
+    ``t[-1]`` (module docstring), and the marker's points (len(t), 3)."""
     m = walk.marker_points(t)[:, foot]
     d = m[-1] - m[0]
     step = float(np.hypot(d[0], d[1]))
-    return (m - m[0]) @ (np.array([d[0], d[1], 0.0]) / step) / step, d
+    return (m - m[0]) @ (np.array([d[0], d[1], 0.0]) / step) / step, m
 
 
 def swing_profiles(walk: Walk, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -66,10 +66,10 @@ def swing_profiles(walk: Walk, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     tau = np.asarray(tau, dtype=np.float64)
     progress, lift, fraction = [], [], []
     for s, ff0, ho, ff1 in _swings(walk):
-        rho, d = _progress(walk, s, ho + tau * (ff1 - ho))
-        z = walk.marker_points(ho + tau * (ff1 - ho))[:, s, 2]
+        rho, m = _progress(walk, s, ho + tau * (ff1 - ho))
+        z = m[:, 2]
         progress.append(rho)
-        lift.append((z - z[0] - rho * d[2]) / walk.subject.height_m)
+        lift.append((z - z[0] - rho * (z[-1] - z[0])) / walk.subject.height_m)
         fraction.append((ff1 - ho) / (ff1 - ff0))
     if not progress:
         return np.empty((0, len(tau))), np.empty((0, len(tau))), np.empty(0)
