@@ -19,7 +19,11 @@ written result folder (``mpjpe_m``, ``foot_nmate_m``, ``foot_nmate_filled_m``,
 pipeline reaches with a perfect segmenter); otherwise an ONNX file (default: the committed one).
 
     python benchmarks/bench_infer.py SESSION [SESSION ...] [--segmenter X.onnx|oracle]
-        [--cache DIR] [--json OUT.json] [--variants default]
+        [--cache DIR] [--json OUT.json] [--variants default] [--set KEY=VALUE ...]
+
+``--set KEY=VALUE``: overrides of the ``gaitnet infer`` config every variant starts from (e.g.
+``edge_refine.radius_px=0``); the cached observations are kept per segmenter and edge
+refinement.
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from gaitnet.config import load_config
 from gaitnet.evaluation.evaluate import evaluate_result
 from gaitnet.io import open_session
 from gaitnet.motion.onnx_runtime import OnnxPredictor
@@ -47,25 +52,24 @@ from gaitnet.training.scripts import ScriptParser
 
 
 class OracleSegmenter:
-    """The session's true label maps, looked up by the frame's RGB (the network's input)."""
+    """The session's true label maps, looked up by the frame's RGB."""
 
     arch = "rgb"
     input_scale = 0.5  # its HHA is not looked at: the cheapest stride
 
     def __init__(self, session_dir: Path) -> None:
         self.path = Path("oracle")
-        self.labels: dict[str, np.ndarray] = {}
+        self.truth: dict[str, np.ndarray] = {}
         for frame in open_session(session_dir).frames():
             png = session_dir / "groundtruth" / "labels" / f"{frame.t_ns}.png"
-            self.labels[self._key(frame.rgb)] = cv2.imread(str(png), cv2.IMREAD_UNCHANGED)
+            self.truth[self._key(frame.rgb)] = cv2.imread(str(png), cv2.IMREAD_UNCHANGED)
 
     @staticmethod
     def _key(rgb: np.ndarray) -> str:
         return hashlib.md5(np.ascontiguousarray(rgb).tobytes()).hexdigest()
 
-    def predict(self, x: np.ndarray) -> np.ndarray:
-        rgb = np.round(x[0, :3].transpose(1, 2, 0) * 255.0).astype(np.uint8)
-        return self.labels[self._key(rgb)][None]
+    def labels(self, rgb: np.ndarray, hha: np.ndarray) -> np.ndarray:
+        return self.truth[self._key(rgb)]
 
 
 DEFAULT = "+swing (default)"
@@ -115,14 +119,25 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=None, help="folder for cached observations")
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--variants", choices=("all", "default"), default="all")
+    ap.add_argument(
+        "--set",
+        dest="overrides",
+        nargs="*",
+        default=[],
+        metavar="KEY=VALUE",
+        help="infer config overrides",
+    )
     args = ap.parse_args()
-    base = InferConfig()
+    base = load_config(InferConfig, None, args.overrides)
     runs = variants(base) if args.variants == "all" else {DEFAULT: base}
     predictor = OnnxPredictor(args.predictor or default_predictor_path())
     table: dict[str, dict[str, list[float]]] = {name: {} for name in runs}
     timing: list[dict[str, float]] = []
     for session_dir in args.sessions:
         tag = "oracle" if args.segmenter == "oracle" else Path(args.segmenter or "default").stem
+        refine = base.edge_refine
+        if tag != "oracle" and refine.radius_px:
+            tag += f"_refine{refine.radius_px}-{refine.eps:g}-{refine.region}"
         cached = args.cache / f"{session_dir.name}_{tag}.pkl" if args.cache else None
         if cached is not None and cached.exists():
             obs = pickle.loads(cached.read_bytes())
@@ -130,7 +145,9 @@ def main() -> None:
             if args.segmenter == "oracle":
                 segmenter = OracleSegmenter(session_dir)
             else:
-                segmenter = OnnxSegmenter(args.segmenter or default_segmenter_path(), threads=1)
+                segmenter = OnnxSegmenter(
+                    args.segmenter or default_segmenter_path(), threads=1, edge_refine=refine
+                )
             obs = observe(open_session(session_dir), base, segmenter)
             if cached is not None:
                 cached.parent.mkdir(parents=True, exist_ok=True)

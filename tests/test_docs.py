@@ -239,7 +239,7 @@ def test_ci_runs_readme_test_command_verbatim() -> None:
 
 #: distribution name → the module the project imports it as
 IMPORT_NAMES = {
-    "opencv-python-headless": "cv2",
+    "opencv-contrib-python-headless": "cv2",
     "PyYAML": "yaml",
     "pillow": "PIL",
     "zlib-ng": "zlib_ng",

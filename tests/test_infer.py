@@ -19,6 +19,7 @@ from gaitnet.motion.skeleton import builtin_skeleton, forward_kinematics
 from gaitnet.pipeline.config import InferConfig, PipelineParams
 from gaitnet.pipeline.foot_points import floor_in_camera
 from gaitnet.pipeline.infer import _contact, _standing_feet, _standing_frames
+from gaitnet.segmentation.edge_refine import EdgeRefineParams
 from gaitnet.segmentation.onnx_runtime import export_segmenter_onnx
 from gaitnet.segmentation.segmenter_net import build_segmenter
 from gaitnet.vio.result import StanceFoot
@@ -190,8 +191,9 @@ def test_workers_act_and_do_not_change_the_result(
 def test_models_keys_reach_the_segmenter(
     tmp_path: Path, tiny_sim_session: Path, tiny_segmenter: Path, monkeypatch, capsys
 ) -> None:
-    """``models.threads`` and ``models.segmenter_flip_average`` are the segmenter's settings
-    in ``gaitnet infer`` (the option's effect: test_segmentation_onnx.py)."""
+    """``models.threads``, ``models.segmenter_flip_average`` and the ``edge_refine`` keys are
+    the segmenter's settings in ``gaitnet infer`` (their effects: test_segmentation_onnx.py,
+    test_edge_refine.py)."""
     import gaitnet.segmentation.onnx_runtime as onnx_runtime
     from gaitnet.errors import InputError
 
@@ -210,8 +212,17 @@ def test_models_keys_reach_the_segmenter(
     assert "stop here" in capsys.readouterr().err
     assert made[-1].flip_average
     assert made[-1].session.get_session_options().intra_op_num_threads == 2
+    assert made[-1].edge_refine == EdgeRefineParams()
     assert main(args) == 1
     assert not made[-1].flip_average
+    keys = ["edge_refine.radius_px=3", "edge_refine.eps=0.01", "edge_refine.region=frame"]
+    assert main([*args, *keys]) == 1
+    assert made[-1].edge_refine == EdgeRefineParams(3, 0.01, "frame")
+    capsys.readouterr()
+    assert main([*args, "edge_refine.region=legs"]) == 1
+    assert "key 'edge_refine.region' must be one of 'feet', 'frame'" in capsys.readouterr().err
+    assert main([*args, "edge_refine.radius_px=-1"]) == 1
+    assert "edge_refine: radius_px must be an integer within [0, 64]" in capsys.readouterr().err
 
 
 def test_feet_measured_on_the_filter_pose_end_on_the_smoothed_one(

@@ -13,6 +13,7 @@ from gaitnet.io.types import Frame
 from gaitnet.pipeline.config import InferConfig
 from gaitnet.pipeline.foot_points import floor_in_camera, measure_feet
 from gaitnet.segmentation.hha import hha_encode
+from gaitnet.segmentation.onnx_runtime import network_input
 
 H, W, F = 96, 128, 100.0
 K = np.array([[F, 0.0, (W - 1) / 2], [0.0, F, (H - 1) / 2], [0.0, 0.0, 1.0]])
@@ -28,9 +29,9 @@ class RecordingSegmenter:
         self.input_scale = input_scale
         self.inputs: list[np.ndarray] = []
 
-    def predict(self, x: np.ndarray) -> np.ndarray:
-        self.inputs.append(x)
-        return np.zeros((x.shape[0], x.shape[2], x.shape[3]), np.uint8)
+    def labels(self, rgb: np.ndarray, hha: np.ndarray) -> np.ndarray:
+        self.inputs.append(network_input(self.arch, rgb, hha))
+        return np.zeros(rgb.shape[:2], np.uint8)
 
 
 def floor_frame() -> tuple[Frame, np.ndarray]:
@@ -86,10 +87,10 @@ def test_running_the_pipeline_does_not_import_pytorch() -> None:
 class FloorAsFootSegmenter(RecordingSegmenter):
     """Labels a floor patch (what a segmenter's rim does) and a leg patch."""
 
-    def predict(self, x: np.ndarray) -> np.ndarray:
-        labels = np.zeros((x.shape[0], x.shape[2], x.shape[3]), np.uint8)
-        labels[:, 40:70, 40:60] = 1
-        labels[:, 10:20, 90:110] = 2
+    def labels(self, rgb: np.ndarray, hha: np.ndarray) -> np.ndarray:
+        labels = np.zeros(rgb.shape[:2], np.uint8)
+        labels[40:70, 40:60] = 1
+        labels[10:20, 90:110] = 2
         return labels
 
 
@@ -110,10 +111,10 @@ class FarAndNearFootSegmenter(RecordingSegmenter):
     FAR = np.s_[4:24, 22:30]
     NEAR = np.s_[70:82, 34:44]
 
-    def predict(self, x: np.ndarray) -> np.ndarray:
-        labels = np.zeros((x.shape[0], x.shape[2], x.shape[3]), np.uint8)
-        labels[:, self.FAR[0], self.FAR[1]] = 1
-        labels[:, self.NEAR[0], self.NEAR[1]] = 1
+    def labels(self, rgb: np.ndarray, hha: np.ndarray) -> np.ndarray:
+        labels = np.zeros(rgb.shape[:2], np.uint8)
+        labels[self.FAR] = 1
+        labels[self.NEAR] = 1
         return labels
 
 

@@ -16,19 +16,18 @@ import torch
 from gaitnet.cli import main
 from gaitnet.io import open_session
 from gaitnet.io.trajectory import read_tum
+from gaitnet.segmentation.edge_refine import EdgeRefineParams, argmax_classes, refine_labels
 from gaitnet.segmentation.hha import HhaParams, find_floor, hha_encode
 from gaitnet.segmentation.onnx_runtime import (
     OnnxSegmenter,
-    argmax_classes,
     export_segmenter_onnx,
-)
-from gaitnet.segmentation.postprocess import foot_keypoints, kept_feet_labels
-from gaitnet.segmentation.segment_session import (
-    KEYPOINT_COLUMNS,
-    accelerometer_gravity_C,
     network_input,
 )
+from gaitnet.segmentation.postprocess import foot_keypoints, kept_feet_labels
+from gaitnet.segmentation.segment_session import KEYPOINT_COLUMNS, accelerometer_gravity_C
 from gaitnet.segmentation.segmenter_net import build_segmenter
+
+DEFAULT_REFINE = EdgeRefineParams()  # gaitnet segment's
 
 
 @pytest.fixture(scope="module")
@@ -47,10 +46,16 @@ def tiny_model(tmp_path_factory, tiny_sim_session: Path) -> Path:
     return path
 
 
-def _middle_frame_by_hand(session, model_path: Path, flip_average: bool = False):
+def _middle_frame_by_hand(
+    session,
+    model_path: Path,
+    flip_average: bool = False,
+    refine: EdgeRefineParams | None = DEFAULT_REFINE,
+):
     """The session's middle frame and, computed step by step as ``gaitnet segment`` does, the
     network's labels for it (with ``flip_average``: the arg-max of the mean of the logits of
-    the frame and, mirrored back, of the mirrored frame), its gravity and its floor plane."""
+    the frame and, mirrored back, of the mirrored frame; refined by ``refine`` unless None),
+    its gravity and its floor plane."""
     K = session.calibration.color.K
     frame = session.frame(len(session) // 2)
     gravity = accelerometer_gravity_C(session.imu, session.calibration.T_CfromI, frame.t_ns, 1.0)
@@ -61,7 +66,10 @@ def _middle_frame_by_hand(session, model_path: Path, flip_average: bool = False)
     logits = net(x)
     if flip_average:
         logits = (logits + net(np.ascontiguousarray(x[..., ::-1]))[..., ::-1]) / 2
-    return frame, argmax_classes(logits)[0], gravity, plane
+    labels = argmax_classes(logits)[0]
+    if refine is not None:
+        labels = refine_labels(logits[0], frame.rgb, labels, refine)
+    return frame, labels, gravity, plane
 
 
 def test_segment_matches_a_per_frame_computation(
@@ -101,12 +109,27 @@ def test_segment_matches_a_per_frame_computation(
 def test_raw_labels_are_the_networks_own(
     tmp_path: Path, tiny_sim_session: Path, tiny_model: Path
 ) -> None:
-    out = tmp_path / "seg"
-    args = ["segment", str(tiny_sim_session), "--out", str(out), "--model", str(tiny_model)]
-    assert main([*args, "--raw-labels"]) == 0
-    frame, raw, _, _ = _middle_frame_by_hand(open_session(tiny_sim_session), tiny_model)
-    written = cv2.imread(str(out / "labels" / f"{frame.t_ns}.png"), cv2.IMREAD_UNCHANGED)
+    args = ["segment", str(tiny_sim_session), "--model", str(tiny_model), "--raw-labels"]
+    assert main([*args, "--out", str(tmp_path / "seg"), "--refine-radius", "0"]) == 0
+    session = open_session(tiny_sim_session)
+    frame, raw, _, _ = _middle_frame_by_hand(session, tiny_model, refine=None)
+    path = f"labels/{frame.t_ns}.png"
+    written = cv2.imread(str(tmp_path / "seg" / path), cv2.IMREAD_UNCHANGED)
     np.testing.assert_array_equal(written, raw)
+    # by default the arg-max is refined (feet region), and the region and radius act
+    maps = [raw]
+    for extra, refine in (
+        ([], EdgeRefineParams()),
+        (["--refine-region", "frame"], EdgeRefineParams(region="frame")),
+        (["--refine-radius", "2", "--refine-eps", "0.01"], EdgeRefineParams(2, 0.01)),
+    ):
+        out = tmp_path / f"seg{len(extra)}"
+        assert main([*args, "--out", str(out), *extra]) == 0
+        _, refined, _, _ = _middle_frame_by_hand(session, tiny_model, refine=refine)
+        written = cv2.imread(str(out / path), cv2.IMREAD_UNCHANGED)
+        np.testing.assert_array_equal(written, refined)
+        assert all((written != other).any() for other in maps)
+        maps.append(written)
 
 
 def test_flip_average_labels_are_the_mirror_averaged_networks(
@@ -144,6 +167,9 @@ def test_accelerometer_gravity_follows_the_true_attitude(tiny_sim_session: Path)
         (["--model", "{tmp}/missing.onnx"], "missing.onnx"),
         (["--threads", "-1"], "threads"),
         (["--threads", "x"], "expected an integer"),
+        (["--refine-radius", "-1"], "--refine-radius"),
+        (["--refine-eps", "0"], "eps must be"),
+        (["--refine-region", "legs"], "invalid choice"),
     ],
 )
 def test_segment_errors_are_one_line(

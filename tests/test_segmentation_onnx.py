@@ -20,10 +20,10 @@ from onnx import TensorProto, helper
 import gaitnet.io.onnx_export as onnx_export
 from gaitnet.errors import InputError
 from gaitnet.io.onnx_session import OnnxInputError
+from gaitnet.segmentation.edge_refine import argmax_classes
 from gaitnet.segmentation.onnx_runtime import (
     OnnxParityError,
     OnnxSegmenter,
-    argmax_classes,
     export_segmenter_onnx,
 )
 from gaitnet.segmentation.segmenter_net import SegmenterNet

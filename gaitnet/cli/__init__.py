@@ -59,6 +59,7 @@ from gaitnet.cli.commands import (
     _cmd_vio,
 )
 from gaitnet.errors import USER_ERRORS, one_line, user_error_message
+from gaitnet.segmentation.edge_refine import EdgeRefineParams
 
 log = logging.getLogger("gaitnet")
 
@@ -221,14 +222,38 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--raw-labels",
         action="store_true",
-        help="write the network's own label maps, not the post-processed ones (feet kept by "
-        "the depth checks)",
+        help="write the label maps before the foot post-processing's depth checks (edge "
+        "refinement still applied: add --refine-radius 0 for the network's own arg-max)",
     )
     p.add_argument(
         "--flip-average",
         action="store_true",
         help="average the network's logits over each frame and its mirror image (more "
         "accurate, twice the network's time; docs/segmenter.md)",
+    )
+    refine = EdgeRefineParams()
+    p.add_argument(
+        "--refine-radius",
+        metavar="PX",
+        type=_integer,
+        default=refine.radius_px,
+        help="move the label boundaries to the frame's colour edges with a guided filter of "
+        f"this window radius (0: off; default {refine.radius_px}; docs/segmenter.md)",
+    )
+    p.add_argument(
+        "--refine-eps",
+        metavar="EPS",
+        type=float,
+        default=refine.eps,
+        help=f"the guided filter's regularisation, colour in [0, 1] (default {refine.eps:g})",
+    )
+    p.add_argument(
+        "--refine-region",
+        metavar="REGION",
+        choices=("feet", "frame"),
+        default=refine.region,
+        help="feet: refine the foot labels around each foot (fast); frame: every label of the "
+        f"frame (default {refine.region})",
     )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.set_defaults(func=_cmd_segment)

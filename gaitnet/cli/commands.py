@@ -182,6 +182,7 @@ def _cmd_vio(args: argparse.Namespace) -> int:
 def _cmd_segment(args: argparse.Namespace) -> int:
     from gaitnet.io import open_session
     from gaitnet.io.atomic import check_output_folder
+    from gaitnet.segmentation.edge_refine import EdgeRefineParams
     from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
     from gaitnet.segmentation.segment_session import (
         SegmentOptions,
@@ -189,12 +190,17 @@ def _cmd_segment(args: argparse.Namespace) -> int:
         segment_session,
     )
 
+    try:
+        edge_refine = EdgeRefineParams(args.refine_radius, args.refine_eps, args.refine_region)
+    except ValueError as exc:
+        raise UsageError(f"{PROG} segment", f"--refine-radius / --refine-eps: {exc}") from None
     check_output_folder(args.out, args.overwrite)
     session = open_session(args.session)
     model = OnnxSegmenter(
         args.model or default_segmenter_path(),
         threads=args.threads,
         flip_average=args.flip_average,
+        edge_refine=edge_refine,
     )
     result = segment_session(
         session,
@@ -240,6 +246,7 @@ def _cmd_infer(args: argparse.Namespace) -> int:
         args.segmenter or cfg.models.segmenter or default_segmenter_path(),
         threads=threads,
         flip_average=cfg.models.segmenter_flip_average,
+        edge_refine=cfg.edge_refine,
     )
     predictor = OnnxPredictor(
         args.predictor or cfg.models.predictor or default_predictor_path(), threads=threads

@@ -1,8 +1,9 @@
 """The ``gaitnet infer`` config (docs/configs.md, *Inference*): one YAML tree over every stage.
 
 ``vio`` is the filter and smoother's whole config (:class:`~gaitnet.vio.config.VioConfig`),
-``hha`` and ``feet`` the segmenter's input encoding and post-processing
-(:class:`~gaitnet.segmentation.hha.HhaParams`,
+``hha``, ``edge_refine`` and ``feet`` the segmenter's input encoding, the refinement of its
+label maps and their post-processing (:class:`~gaitnet.segmentation.hha.HhaParams`,
+:class:`~gaitnet.segmentation.edge_refine.EdgeRefineParams`,
 :class:`~gaitnet.segmentation.postprocess.FootKeypointParams`), ``correction`` the pose
 correction (:class:`~gaitnet.pipeline.pose_types.PoseCorrectionParams`), ``models`` the ONNX
 files and ``pipeline`` how the stages are joined (:class:`PipelineParams`).
@@ -16,6 +17,7 @@ from typing import ClassVar, Literal
 from gaitnet.checks import check_int_range, check_range
 from gaitnet.pipeline.pose_types import PoseCorrectionParams
 from gaitnet.pipeline.swing_fill import SWING_SPAN_OFFSET_S, SWING_SPAN_PER_CYCLE
+from gaitnet.segmentation.edge_refine import EdgeRefineParams
 from gaitnet.segmentation.hha import HhaParams
 from gaitnet.segmentation.postprocess import FootKeypointParams
 from gaitnet.vio.config import VioConfig
@@ -174,6 +176,7 @@ class InferConfig:
     vio: VioConfig = field(default_factory=VioConfig)
     models: ModelParams = field(default_factory=ModelParams)
     hha: HhaParams = field(default_factory=HhaParams)
+    edge_refine: EdgeRefineParams = field(default_factory=EdgeRefineParams)
     feet: FootKeypointParams = field(default_factory=FootKeypointParams)
     correction: InferCorrectionParams = field(default_factory=lambda: InferCorrectionParams())
     """The correction (eq. 4.7–4.8)."""

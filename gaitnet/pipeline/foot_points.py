@@ -26,7 +26,6 @@ from gaitnet.segmentation.postprocess import (
     foot_keypoints,
     kept_feet_labels,
 )
-from gaitnet.segmentation.segment_session import network_input
 
 __all__ = ["FrameFeet", "floor_in_camera", "measure_feet"]
 
@@ -73,7 +72,7 @@ def measure_feet(
     gravity_C = -plane.n_C
     stride = hha_stride(segmenter.input_scale)
     hha = hha_encode(frame.depth_m, K, gravity_C, hha_params, plane=plane, stride=stride)
-    labels = segmenter.predict(network_input(segmenter.arch, frame.rgb, hha))[0]
+    labels = segmenter.labels(frame.rgb, hha)
     feet = foot_keypoints(labels, frame.depth_m, K, feet_params, gravity_C=gravity_C, plane=plane)
     foot_W = np.full((2, 3), np.nan)
     for foot in feet:  # largest first: a side keeps its largest blob

@@ -18,7 +18,9 @@ of another size than the model's are scaled and windowed
 segmenter, and an input of the wrong rank, channels or dtype, an empty batch or NaN/inf, are
 one-line :class:`~gaitnet.io.onnx_session.OnnxInputError` s (an
 :class:`~gaitnet.errors.InputError`) naming the file. Running a model does not import PyTorch
-(only the export does).
+(only the export does). :meth:`OnnxSegmenter.labels` is one frame's label map from its RGB
+and HHA: the network's input (:func:`network_input`), its arg-max, and optionally the edge
+refinement (:mod:`gaitnet.segmentation.edge_refine`).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
 
 from gaitnet.io.onnx_export import ExportReport, OnnxParityError, export_onnx_checked
@@ -46,6 +49,7 @@ from gaitnet.segmentation.channels import (
     RGB_STD,
     input_channels,
 )
+from gaitnet.segmentation.edge_refine import EdgeRefineParams, argmax_classes, refine_labels
 from gaitnet.segmentation.frame_windows import windowed_logits
 
 if TYPE_CHECKING:  # PyTorch is imported only to export (module docstring)
@@ -62,9 +66,9 @@ __all__ = [
     "OnnxInputError",
     "OnnxParityError",
     "OnnxSegmenter",
-    "argmax_classes",
     "default_classes",
     "export_segmenter_onnx",
+    "network_input",
     "segmenter_metadata",
 ]
 
@@ -177,6 +181,10 @@ class OnnxSegmenter:
     back, on the frame mirrored left to right (test-time augmentation; the classes have no
     side and training mirrors frames, so both are the network's view of the same scene). It
     doubles the network's work; docs/segmenter.md has what it gains.
+
+    ``edge_refine``: :meth:`labels` moves the class boundaries of the arg-max to the frame's
+    colour edges (:func:`~gaitnet.segmentation.edge_refine.refine_labels`); ``None``: the
+    arg-max as it is.
     """
 
     def __init__(
@@ -185,9 +193,11 @@ class OnnxSegmenter:
         threads: int = 1,
         providers: Sequence[str] = ("CPUExecutionProvider",),
         flip_average: bool = False,
+        edge_refine: EdgeRefineParams | None = None,
     ) -> None:
         self.path = Path(path)
         self.flip_average = bool(flip_average)
+        self.edge_refine = edge_refine
         self.session = open_session(self.path, threads, providers)
         self.metadata = model_metadata(self.session)
         if self.metadata.get("gaitnet.model") != "segmenter":
@@ -289,14 +299,25 @@ class OnnxSegmenter:
         """Labels (batch, H, W) uint8: the arg-max class per pixel (:func:`argmax_classes`)."""
         return argmax_classes(self(x))
 
+    def labels(self, rgb: np.ndarray, hha: np.ndarray) -> np.ndarray:
+        """Label map (H, W) uint8 of one frame from its RGB and HHA (H, W, 3) uint8: the
+        arg-max of the network's logits, refined by :attr:`edge_refine` when set (the guide is
+        the frame's RGB, whatever the network sees)."""
+        logits = self(network_input(self.arch, rgb, hha))
+        labels = argmax_classes(logits)[0]
+        if self.edge_refine is None:
+            return labels
+        return refine_labels(logits[0], rgb, labels, self.edge_refine)
 
-def argmax_classes(logits: np.ndarray) -> np.ndarray:
-    """``np.argmax(logits, axis=1)`` as uint8 for (batch, classes, H, W) logits (ties to the
-    lower class, as numpy), one class plane at a time: 4× faster than the strided arg-max."""
-    best = logits[:, 0].copy()
-    labels = np.zeros(best.shape, np.uint8)
-    for k in range(1, logits.shape[1]):
-        better = logits[:, k] > best
-        labels[better] = k
-        np.maximum(best, logits[:, k], out=best)
-    return labels
+
+def network_input(arch: str, rgb: np.ndarray, hha: np.ndarray) -> np.ndarray:
+    """(1, C, H, W) float32 input of a segmenter ``arch`` from RGB and HHA (H, W, 3) uint8:
+    RGB/255 (``rgb``), HHA/255 (``hha``) or both, RGB first (``fusion``)."""
+    parts = {"rgb": (rgb,), "hha": (hha,), "fusion": (rgb, hha)}[arch]
+    h, w = parts[0].shape[:2]
+    x = np.empty((1, 3 * len(parts), h, w), np.float32)
+    for i, image in enumerate(parts):  # channel planes copied by OpenCV: 15× numpy's transpose
+        for c, plane in enumerate(cv2.split(np.ascontiguousarray(image))):
+            x[0, 3 * i + c] = plane
+    x *= np.float32(1.0 / 255.0)
+    return x

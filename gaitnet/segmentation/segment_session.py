@@ -60,7 +60,6 @@ __all__ = [
     "DEFAULT_SEGMENTER",
     "accelerometer_gravity_C",
     "default_segmenter_path",
-    "network_input",
     "segment_session",
 ]
 
@@ -122,19 +121,6 @@ def accelerometer_gravity_C(
     return -(np.asarray(T_CfromI)[:3, :3] @ (mean / norm))
 
 
-def network_input(arch: str, rgb: np.ndarray, hha: np.ndarray) -> np.ndarray:
-    """(1, C, H, W) float32 input of a segmenter ``arch`` from RGB and HHA (H, W, 3) uint8:
-    RGB/255 (``rgb``), HHA/255 (``hha``) or both, RGB first (``fusion``)."""
-    parts = {"rgb": (rgb,), "hha": (hha,), "fusion": (rgb, hha)}[arch]
-    h, w = parts[0].shape[:2]
-    x = np.empty((1, 3 * len(parts), h, w), np.float32)
-    for i, image in enumerate(parts):  # channel planes copied by OpenCV: 15× numpy's transpose
-        for c, plane in enumerate(cv2.split(np.ascontiguousarray(image))):
-            x[0, 3 * i + c] = plane
-    x *= np.float32(1.0 / 255.0)
-    return x
-
-
 def _overlay(rgb: np.ndarray, labels: np.ndarray, feet: list) -> np.ndarray:
     """RGB with the label colours blended over feet and legs, and the keypoints drawn."""
     out = rgb.copy()
@@ -190,7 +176,7 @@ def segment_session(
             plane = find_floor(frame.depth_m, K, up, hha_params)  # one fit for HHA and the feet
             hha = hha_encode(frame.depth_m, K, gravity, hha_params, plane=plane, stride=stride)
             t1 = time.perf_counter()
-            labels = segmenter.predict(network_input(segmenter.arch, frame.rgb, hha))[0]
+            labels = segmenter.labels(frame.rgb, hha)
             t2 = time.perf_counter()
             feet = foot_keypoints(
                 labels, frame.depth_m, K, keypoint_params, gravity_C=gravity, plane=plane
