@@ -329,3 +329,45 @@ def test_lateral_foot_point_from_the_shoe_top_is_not_pulled_towards_the_camera()
     assert y - lateral[0.0] > 0.003  # pulled towards the camera (y = 0) by the near sole edge
     with pytest.raises(ValueError, match="top_height_fraction"):
         detect_foot_candidates(depth, K, _plane(T), FootParams(top_height_fraction=1.0))
+
+
+def _split_last_stance(
+    params: StanceParams | None = None,
+) -> tuple[StanceTracker, list, dict[int, np.ndarray]]:
+    """A walk whose last right stance is reported twice: the pose jumps by 5 cm while the foot
+    rests (more than ``assoc_radius_m``), and the camera stands 0.2 m to the right of the
+    body's line when the second track is confirmed (the unary term says "left"). Returns the
+    finished tracker, its stances and their true floor points."""
+    heading = np.array([1.0, 0.0])
+    steps = [  # (floor point, first, last time)
+        (np.array([0.0, 0.08]), 0.0, 0.3),
+        (np.array([0.35, -0.08]), 0.5, 0.8),
+        (np.array([0.7, 0.08]), 1.0, 1.3),
+        (np.array([1.05, -0.08]), 1.5, 2.5),
+    ]
+    trk = StanceTracker(params)
+    for i in range(int(2.5 * FPS) + 1):
+        t = i / FPS
+        jump = np.array([0.05, 0.0]) if t >= 1.9 else np.zeros(2)
+        cands = [p + jump for p, t0, t1 in steps if t0 <= t <= t1]
+        cam = np.array([t * 0.5, -0.2 if t >= 1.9 else 0.0])
+        trk.update(t, cands, heading_W=heading, p_CinW=cam)
+    stances = trk.finish()
+    truth = {
+        s.id: min((p for p, _, _ in steps), key=lambda p: np.linalg.norm(s.xy - p)) for s in stances
+    }
+    return trk, stances, truth
+
+
+def test_a_stance_reported_again_at_the_same_place_keeps_its_side() -> None:
+    trk, stances, truth = _split_last_stance()
+    assert len(stances) == 5  # the last one split in two
+    last_two = sorted(stances, key=lambda s: s.t_first)[-2:]
+    assert np.allclose(truth[last_two[0].id], truth[last_two[1].id])
+    sides = trk.sides_at(truth)
+    assert [sides[s.id] for s in sorted(stances, key=lambda s: s.t_first)] == [
+        "left", "right", "left", "right", "right"
+    ]  # fmt: skip
+    # without the rule the camera's offset labels the second report "left"
+    off, stances_off, truth_off = _split_last_stance(StanceParams(same_foot_m=0.0))
+    assert off.sides_at(truth_off)[max(stances_off, key=lambda s: s.t_first).id] == "left"
