@@ -332,12 +332,14 @@ def test_lateral_foot_point_from_the_shoe_top_is_not_pulled_towards_the_camera()
 
 
 def _split_last_stance(
-    params: StanceParams | None = None,
+    params: StanceParams | None = None, twice: bool = False
 ) -> tuple[StanceTracker, list, dict[int, np.ndarray]]:
     """A walk whose last right stance is reported twice: the pose jumps by 5 cm while the foot
     rests (more than ``assoc_radius_m``), and the camera stands 0.2 m to the right of the
-    body's line when the second track is confirmed (the unary term says "left"). Returns the
-    finished tracker, its stances and their true floor points."""
+    body's line when the second track is confirmed (the unary term says "left"); with
+    ``twice``, instead, the foot is found twice (two candidates 3 mm apart) from then on, so
+    the two stances are down at once. Returns the finished tracker, its stances and their true
+    floor points."""
     heading = np.array([1.0, 0.0])
     steps = [  # (floor point, first, last time)
         (np.array([0.0, 0.08]), 0.0, 0.3),
@@ -348,8 +350,10 @@ def _split_last_stance(
     trk = StanceTracker(params)
     for i in range(int(2.5 * FPS) + 1):
         t = i / FPS
-        jump = np.array([0.05, 0.0]) if t >= 1.9 else np.zeros(2)
+        jump = np.array([0.05, 0.0]) if t >= 1.9 and not twice else np.zeros(2)
         cands = [p + jump for p, t0, t1 in steps if t0 <= t <= t1]
+        if twice and t >= 1.9:
+            cands.append(steps[-1][0] + [0.003, 0.0])
         cam = np.array([t * 0.5, -0.2 if t >= 1.9 else 0.0])
         trk.update(t, cands, heading_W=heading, p_CinW=cam)
     stances = trk.finish()
@@ -359,8 +363,9 @@ def _split_last_stance(
     return trk, stances, truth
 
 
-def test_a_stance_reported_again_at_the_same_place_keeps_its_side() -> None:
-    trk, stances, truth = _split_last_stance()
+@pytest.mark.parametrize("twice", [False, True])
+def test_a_stance_reported_again_at_the_same_place_keeps_its_side(twice: bool) -> None:
+    trk, stances, truth = _split_last_stance(twice=twice)
     assert len(stances) == 5  # the last one split in two
     last_two = sorted(stances, key=lambda s: s.t_first)[-2:]
     assert np.allclose(truth[last_two[0].id], truth[last_two[1].id])
@@ -369,5 +374,24 @@ def test_a_stance_reported_again_at_the_same_place_keeps_its_side() -> None:
         "left", "right", "left", "right", "right"
     ]  # fmt: skip
     # without the rule the camera's offset labels the second report "left"
-    off, stances_off, truth_off = _split_last_stance(StanceParams(same_foot_m=0.0))
+    off, stances_off, truth_off = _split_last_stance(StanceParams(same_foot_m=0.0), twice)
     assert off.sides_at(truth_off)[max(stances_off, key=lambda s: s.t_first).id] == "left"
+
+
+def test_a_stance_beside_a_resting_foot_is_not_that_foot() -> None:
+    """The same-foot rule needs the earlier stance to have ended: a short stance found between
+    the feet while the right foot rests (6.7 cm from it), then the left foot resting 5.4 cm
+    from that one 0.1 s after it: the short one is the left foot (it overlaps the right one's
+    rest), and so is the last."""
+    heading = np.array([1.0, 0.0])
+    R, S, L = np.array([1.0, -0.06]), np.array([1.03, 0.0]), np.array([1.05, 0.05])
+    steps = [(R, 0.6, 3.0), (S, 1.0, 1.1), (L, 1.2, 3.0)]
+    trk = StanceTracker()
+    for i in range(int(3.0 * FPS) + 1):
+        t = i / FPS
+        cands = [p for p, t0, t1 in steps if t0 <= t <= t1]
+        trk.update(t, cands, heading_W=heading, p_CinW=np.array([1.0, 0.0]))
+    stances = sorted(trk.finish(), key=lambda s: s.t_first)
+    assert len(stances) == 3
+    sides = trk.sides_at({s.id: p for s, (p, _, _) in zip(stances, steps, strict=True)})
+    assert [sides[s.id] for s in stances] == ["right", "left", "left"]

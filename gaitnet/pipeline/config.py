@@ -126,14 +126,6 @@ class PipelineParams:
     1.8 s one)."""
     swing_span_per_cycle: float = SWING_SPAN_PER_CYCLE
     """See ``swing_span_offset_s``."""
-    side_check: bool = True
-    """Check each measured foot's side against the filter's stance landmarks before the poses
-    are corrected: a point resting where the other foot's landmark rests is that foot, a point
-    farther than ``side_check_far_m`` from its own side's resting foot is dropped
-    (:mod:`gaitnet.pipeline.side_check`; "near" is ``vio.stance.same_foot_m``)."""
-    side_check_far_m: float = 0.2
-    """See ``side_check`` [m]: twice the largest distance of a correctly sided point from its
-    landmark measured on simulated sessions (0.11 m)."""
     marker_offset_m: tuple[float, float, float] = (0.0, -0.011, 0.079)
     """The reported foot point (``feet.csv``, the foot trajectories): the shoe marker over the
     instep, in the ankle frame (SMPL axes: x left, y up, z forward; mirrored for the right
@@ -152,7 +144,6 @@ class PipelineParams:
             )
         check_range("pipeline.swing_span_offset_s", self.swing_span_offset_s, 0.0, 0.5, " s")
         check_range("pipeline.swing_span_per_cycle", self.swing_span_per_cycle, 0.3, 0.95)
-        check_range("pipeline.side_check_far_m", self.side_check_far_m, 0.05, 2.0, " m")
         if self.subject_height_m != 0:
             check_range("pipeline.subject_height_m", self.subject_height_m, 0.8, 2.3, " m")
         check_range("pipeline.camera_height_fraction", self.camera_height_fraction, 0.3, 0.8)

@@ -6,8 +6,6 @@
 2. Per processed frame, while the filter goes on (:func:`observe`), the measured foot points
    in the world (:func:`gaitnet.pipeline.foot_points.measure_feet`, HHA with the filter's
    gravity and floor), moved to the smoothed camera pose once the smoother has run.
-   With ``pipeline.side_check`` each measured point's side is then checked against the
-   filter's stance landmarks (:mod:`gaitnet.pipeline.side_check`).
 3. The standing phase at the start (the camera still, at most ``pipeline.standing_s``) gives the
    subject's skeleton (body height from the camera height unless configured) and the
    camera-to-pelvis extrinsic (:mod:`gaitnet.pipeline.pelvis_extrinsic`): the standing skeleton
@@ -58,7 +56,6 @@ from gaitnet.pipeline.pelvis_extrinsic import (
 from gaitnet.pipeline.pose_residuals import ChainGeometry, ChainState, chain_points
 from gaitnet.pipeline.pose_tracking import track_poses
 from gaitnet.pipeline.pose_types import FrameMeasurements, PoseState, R_PfromSMPL
-from gaitnet.pipeline.side_check import check_sides
 from gaitnet.pipeline.swing_fill import swing_fill
 from gaitnet.segmentation.midline import MidlineEstimate
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
@@ -322,17 +319,6 @@ def reconstruct(
     timings = dict(obs.timings_s)
     n = len(vio.t_s)
     T_WfromC = vio.T_WfromC
-    if cfg.pipeline.side_check:
-        measured, changed = check_sides(
-            vio.t_s, measured, vio.stance_feet,
-            cfg.vio.stance.same_foot_m, cfg.pipeline.side_check_far_m,
-        )  # fmt: skip
-        if any(changed.values()):
-            log.info(
-                "feet checked against the stance landmarks: %d moved to the other side, "
-                "%d pairs swapped, %d dropped",
-                changed["moved"], changed["swapped"], changed["dropped"],
-            )  # fmt: skip
 
     def bar(stage: str) -> Progress | None:
         return progress(stage) if progress is not None else None

@@ -30,10 +30,11 @@ stances down at the same time (double support, standing) must differ (a large co
 unary term ``softplus(−s d_C / σ_C)`` uses the offset from the camera, which is near the body's
 midline. This labels standing (both feet down side by side), walking (alternation + step width)
 and one foot seen alone. Candidates far to the side of the camera (``max_camera_offset_m``) are
-ignored: low objects on the floor are not feet. A stance that begins where an earlier one
-rests, too soon after it for a swing (``same_foot_m``, ``same_foot_s``), is that foot
-reported again (a track split when the pose jumps) and takes its side: left to the costs,
-the camera's offset could label it the other foot (seen in simulation at the last step,
+ignored: low objects on the floor are not feet. A stance that begins where the stance before
+it rested, after it but too soon for a swing (``same_foot_m``, ``same_foot_s``), or while it
+rests but closer to it than ``assoc_radius_m``, is that foot reported again (a track split
+when the pose jumps) and must have its side: left to the other costs, the double-support term
+or the camera's offset could label it the other foot (seen in simulation at the last step,
 where the end tag sheet corrects the pose).
 
 Final labels. The online labels use the world points of the observations, moved with the pose
@@ -93,11 +94,12 @@ class StanceParams:
     double_support_cost: float = 20.0
     """Cost of two stances that are down at the same time having one side."""
     same_foot_m: float = 0.08
-    """A stance that begins within this distance [m] of where an earlier one rests, less than
-    ``same_foot_s`` after that one was last seen, is the same foot reported again (its track
-    split, e.g. when the pose jumps at a tag sheet): it takes that stance's side. Two feet
-    cannot rest on one spot in turn that quickly (their centres lie at least a shoe width,
-    ~0.1 m, apart)."""
+    """A stance that begins within this distance [m] of where the stance before it rested,
+    after that one was last seen but less than ``same_foot_s`` after, is the same foot reported
+    again (its track split, e.g. when the pose jumps at a tag sheet): the two having different
+    sides costs ``double_support_cost``. Two feet cannot rest on one spot in turn that quickly
+    (their centres lie at least a shoe width, ~0.1 m, apart). So are two stances down at the
+    same time less than ``assoc_radius_m`` apart (one foot found twice). 0: neither rule."""
     same_foot_s: float = 0.2
     """See ``same_foot_m`` [s]: a foot lifted and set down elsewhere swings for 0.35–0.45 s."""
 
@@ -321,27 +323,6 @@ class StanceTracker:
             st.side = labels[st.id]
 
     def _viterbi(self, stances: list[Stance]) -> dict[int, str]:
-        """The side of each of ``stances``, by id: a stance that is an earlier one's foot
-        reported again (``same_foot_m``, ``same_foot_s``) takes that one's side, the others are
-        labelled by the two-state Viterbi over them in order of start time (module docstring)."""
-        P = self.params
-        leader: dict[int, Stance] = {}
-        ordered = sorted(stances, key=lambda s: (s.t_first, s.id))
-        for i, b in enumerate(ordered):
-            for a in reversed(ordered[:i]):
-                if (
-                    b.t_first > a.t_first
-                    and b.t_first - a.t_last < P.same_foot_s
-                    and float(np.linalg.norm(b.xy - a.xy)) < P.same_foot_m
-                ):
-                    leader[b.id] = leader.get(a.id, a)
-                    break
-        labels = self._chain_sides([s for s in ordered if s.id not in leader])
-        for follower, first in leader.items():
-            labels[follower] = labels[first.id]
-        return labels
-
-    def _chain_sides(self, stances: list[Stance]) -> dict[int, str]:
         """Two-state Viterbi over ``stances`` ordered by start time (module docstring): the
         side of each, by id."""
         P = self.params
@@ -364,6 +345,12 @@ class StanceTracker:
             h = h / np.linalg.norm(h) if np.linalg.norm(h) > 1e-9 else b.heading
             d = float((b.xy - a.xy) @ np.array([h[1], -h[0]]))
             overlap = b.t_first <= a.t_last
+            # a's foot again: b begins where a rested after a was last seen, too soon for a
+            # swing, or both are down at once closer together than two candidates of one foot
+            apart = float(np.linalg.norm(b.xy - a.xy))
+            same_foot = (0.0 < b.t_first - a.t_last < P.same_foot_s and apart < P.same_foot_m) or (
+                overlap and apart < min(P.assoc_radius_m, P.same_foot_m)
+            )
             new = np.empty(2)
             arg = np.empty(2, dtype=int)
             for jb, sb in enumerate(signs):
@@ -371,9 +358,11 @@ class StanceTracker:
                 for ja, sa in enumerate(signs):
                     if sa != sb:
                         c = _softplus(-sb * d / P.side_sigma_m)
+                        if same_foot:
+                            c += P.double_support_cost
                     else:
                         c = P.same_side_cost + 0.5 * (d / P.same_side_sigma_m) ** 2
-                        if overlap:
+                        if overlap and not same_foot:
                             c += P.double_support_cost
                     if cost[ja] + c < best:
                         best, arg[jb] = cost[ja] + c, ja
