@@ -17,10 +17,10 @@ treated as flat (no edge to follow).
 ``region``: ``"feet"`` filters a box around each foot blob of the arg-max labels (widened by
 three radii, beyond the filter's reach of two) and changes only foot labels there: a pixel is
 foot where the filtered foot probability is the largest, and a foot pixel that is no longer
-foot takes the filtered arg-max; about 3 % of a 640×480 frame, well under a millisecond.
-``"frame"``: every class on the whole frame (leg boundaries too; about 16 ms per 640×480 frame
-on this machine's CPU core). Measured gains and the choice of ``radius_px`` and ``eps`` on the
-validation frames: docs/segmenter.md, *Edge refinement*.
+foot takes the filtered arg-max; about 3 % of a 640×480 frame, 1.0 ms per frame on one core
+of the 2-core development machine. ``"frame"``: every class on the whole frame (leg boundaries
+too; 21–22 ms per 640×480 frame there). Measured gains and the choice of ``radius_px`` and
+``eps`` on the validation frames: docs/segmenter.md, *Edge refinement*.
 """
 
 from __future__ import annotations
