@@ -107,7 +107,10 @@ def main() -> None:
         args.model or default_segmenter_path(), threads=1, flip_average=args.flip_average
     )
     params = replace(FootKeypointParams(), min_foot_height_m=args.min_foot_height)
-    refine = EdgeRefineParams(args.refine_radius, args.refine_eps, args.refine_region)
+    try:
+        refine = EdgeRefineParams(args.refine_radius, args.refine_eps, args.refine_region)
+    except ValueError as exc:
+        ap.error(f"--refine-radius / --refine-eps: {exc}")
     print(
         f"model {net.path}; min_foot_height_m {params.min_foot_height_m}; "
         f"flip_average {net.flip_average}; edge refinement {refine}"
