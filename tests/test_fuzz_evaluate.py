@@ -208,7 +208,9 @@ def test_valid_result_evaluates(case_dirs, capsys, tmp_path: Path) -> None:
     captured = capsys.readouterr()
     assert rc == 0, captured.err
     data = json.loads(out.read_text())
+    # a shift of the whole body: the world-frame error, which the alignment takes away
     assert data["mpjpe_m"] == pytest.approx(0.01, abs=1e-9)
+    assert data["mpjpe_aligned_m"] == pytest.approx(0.0, abs=1e-9)
     assert data["body_ate_m"] < 1e-6 and data["counts"]["mpjpe_frames"] > 0
     assert all(math.isfinite(data[k]) for k in ("mpjpe_m", "body_ate_m"))
 

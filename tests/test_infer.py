@@ -5,6 +5,9 @@ helpers give known answers."""
 from __future__ import annotations
 
 import csv
+import json
+import logging
+import shutil
 from dataclasses import replace
 from pathlib import Path
 
@@ -13,6 +16,7 @@ import pytest
 import torch
 
 from gaitnet.cli import main
+from gaitnet.evaluation.evaluate import evaluate_result
 from gaitnet.geometry import so3_exp
 from gaitnet.io import open_session
 from gaitnet.motion.skeleton import builtin_skeleton, forward_kinematics
@@ -80,6 +84,27 @@ def test_evaluate_reads_the_result(inferred: Path, tiny_sim_session: Path, capsy
     out = capsys.readouterr().out
     for key in ("mpjpe_m", "foot_nmate_m", "body_ate_m", "miou"):
         assert key in out
+
+
+def test_world_frame_is_recorded_and_evaluate_warns_on_its_own(
+    inferred: Path, tiny_sim_session: Path, tmp_path: Path, caplog
+) -> None:
+    summary = json.loads((inferred / "summary.json").read_text())
+    world = summary["world_frame"]
+    assert world["initialisation"] in ("apriltag", "gravity_floor") and world["note"]
+    shown = "start AprilTag sheet" if world["initialisation"] == "apriltag" else "no AprilTag"
+    assert shown in (inferred / "report.html").read_text()
+    for init in ("apriltag", "gravity_floor"):
+        copy = tmp_path / init
+        shutil.copytree(inferred, copy)
+        summary["world_frame"]["initialisation"] = init
+        (copy / "summary.json").write_text(json.dumps(summary))
+        caplog.clear()
+        with caplog.at_level(logging.WARNING):
+            metrics = evaluate_result(copy, tiny_sim_session).metrics
+        warned = [r for r in caplog.records if "mpjpe_aligned_m" in r.getMessage()]
+        assert len(warned) == (init == "gravity_floor")
+        assert metrics["mpjpe_aligned_m"] > 0 and metrics["mpjpe_m"] > 0
 
 
 def test_bad_arguments_are_one_line(

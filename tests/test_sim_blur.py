@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from gaitnet.config import load_config
+from gaitnet.errors import ConfigError
 from gaitnet.sim.config import SimConfig
 from gaitnet.sim.rig import CameraConfig
 from gaitnet.sim.scene_setup import build_scene, rng_streams
@@ -37,6 +38,18 @@ def test_exposure_time_follows_brightness_and_the_switch_turns_it_off() -> None:
     assert cam.exposure_time_s(2.0) > cam.exposure_time_s(1.0)  # dimmer scene: longer
     assert cam.exposure_time_s(100.0) == hi and cam.exposure_time_s(1e-3) == lo
     assert CameraConfig(motion_blur=False).exposure_time_s(1.0) == 0.0
+
+
+def test_default_longest_exposure_is_at_most_the_frame_period() -> None:
+    assert CameraConfig().exposure_time_range_s == (0.001, 0.030)  # 30 Hz: as written
+    assert CameraConfig(fps=60).exposure_time_range_s == (0.001, 0.0166)  # 16.67 ms, 0.1 ms steps
+    assert CameraConfig(fps=120).exposure_time_range_s == (0.001, 0.0083)
+    # the config path too (a 60 Hz session was refused because of the default); a range the
+    # user gives beyond the frame period is still refused
+    cfg = load_config(SimConfig, None, ["camera.fps=60"])
+    assert cfg.camera.exposure_time_range_s[1] == pytest.approx(0.0166)
+    with pytest.raises(ConfigError, match="exposure_time_range_s"):
+        load_config(SimConfig, None, ["camera.fps=60", "camera.exposure_time_range_s=[0.001,0.02]"])
 
 
 @pytest.mark.parametrize(

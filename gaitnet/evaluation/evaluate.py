@@ -6,7 +6,14 @@ inputs allow, in SI units:
 - ``mpjpe_m`` from ``RESULT_DIR/joints.npz`` (same layout as ``groundtruth/joints.npz``:
   ``t_ns`` (n,) integer nanoseconds and ``positions`` (n, 9, 3) of SMPL joints
   [0, 1, 2, 4, 5, 7, 8, 10, 11]); the mean over matched frames of the 7 lower-body joints
-  (pelvis, hips, knees, ankles), eq. (4.5), :func:`gaitnet.evaluation.metrics.mpjpe`;
+  (pelvis, hips, knees, ankles), eq. (4.5), :func:`gaitnet.evaluation.metrics.mpjpe`, in the
+  session's world frame, which the result shares where the session's start sheet set its
+  world (AprilTags); ``mpjpe_aligned_m`` the same after one yaw + translation alignment of all
+  those joints over the session to the truth
+  (:func:`gaitnet.evaluation.metrics.mpjpe_yaw_aligned`, as ``body_ate_m`` and
+  ``foot_nmate_m`` are aligned): the value to read where the result's world has its own
+  origin and heading (no AprilTag sheet decoded: the filter starts from gravity, the floor
+  and yaw 0);
 - ``body_ate_m`` from ``RESULT_DIR/camera_frames.tum``: RMS camera-position error after a
   yaw + translation alignment to ``groundtruth/camera_frames.tum``;
 - ``stride_rmse_m`` {left, right, all}, ``stride_max_err_m`` {left, right} and ``n_strides``
@@ -34,6 +41,7 @@ that is not finite is never reported.
 from __future__ import annotations
 
 import json
+import logging
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,11 +51,13 @@ import numpy as np
 from gaitnet.errors import GaitnetError, InputError, SessionError
 from gaitnet.evaluation.feet import FEET_FILE, foot_metrics
 from gaitnet.evaluation.label_maps import LABELS_DIR, evaluate_label_maps
-from gaitnet.evaluation.metrics import ate_yaw_aligned, match_times, mpjpe
+from gaitnet.evaluation.metrics import ate_yaw_aligned, match_times, mpjpe, mpjpe_yaw_aligned
 from gaitnet.evaluation.strides import read_strides, stride_metrics
 from gaitnet.io.atomic import atomic_write_text
 from gaitnet.io.npz import npz_array, open_npz
 from gaitnet.io.trajectory import read_tum
+
+log = logging.getLogger(__name__)
 
 __all__ = [
     "JOINTS_FILE",
@@ -117,6 +127,16 @@ def _load_trajectory(path: Path, error: type[GaitnetError]) -> tuple[np.ndarray,
     return t, p
 
 
+def _own_world(result_dir: Path) -> bool:
+    """Whether the result's ``summary.json`` (``gaitnet infer``) says its world frame was not
+    set by an AprilTag sheet; False where it says nothing readable about it."""
+    try:
+        summary = json.loads((result_dir / "summary.json").read_text(encoding="utf-8"))
+        return summary["world_frame"]["initialisation"] != "apriltag"
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+
+
 def _finite(path: Path, name: str, value: float) -> float:
     if not math.isfinite(value):
         raise InputError(f"{path}: {name} is not finite (values too large?)")
@@ -152,9 +172,19 @@ def evaluate_result(result_dir: str | Path, session_dir: str | Path) -> ResultEv
         i, j = match_times(t_est, t_ref)
         if len(i) == 0:
             raise InputError(f"{joints}: no frame matches the ground truth's times")
+        est, ref = p_est[i][:, LOWER_BODY], p_ref[j][:, LOWER_BODY]
         with np.errstate(over="ignore", invalid="ignore"):  # reported below, not warned
-            value = mpjpe(p_est[i, LOWER_BODY], p_ref[j, LOWER_BODY])
-        metrics["mpjpe_m"] = _finite(joints, "MPJPE", value)
+            world = mpjpe(est, ref)
+            aligned = mpjpe_yaw_aligned(est, ref) if np.isfinite(world) else world
+        metrics["mpjpe_m"] = _finite(joints, "MPJPE", world)
+        metrics["mpjpe_aligned_m"] = _finite(joints, "MPJPE", aligned)
+        if _own_world(result_dir):
+            log.warning(
+                "%s: the result's world was set by gravity and the floor (no AprilTag sheet), "
+                "not by the session's sheet: mpjpe_m compares different frames, read "
+                "mpjpe_aligned_m",
+                result_dir,
+            )
         counts["mpjpe_frames"] = int(len(i))
     trajectory = result_dir / TRAJECTORY_FILE
     if trajectory.exists():

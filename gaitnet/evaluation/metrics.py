@@ -29,6 +29,7 @@ __all__ = [
     "mean_angle_error",
     "mpjpe",
     "mpjpe_per_horizon",
+    "mpjpe_yaw_aligned",
     "per_horizon",
 ]
 
@@ -141,6 +142,18 @@ def align_yaw_translation(p_est: np.ndarray, p_ref: np.ndarray) -> tuple[np.ndar
     R = np.array([[np.cos(yaw), -np.sin(yaw), 0.0], [np.sin(yaw), np.cos(yaw), 0.0], [0, 0, 1.0]])
     t = p_ref.mean(0) - R @ p_est.mean(0)
     return R, t
+
+
+def mpjpe_yaw_aligned(est: np.ndarray, ref: np.ndarray) -> float:
+    """Eq. (4.5) after the 4-DoF alignment (:func:`align_yaw_translation`) of every joint of
+    every frame at once: (n, V, 3) positions → the mean joint distance [m]. One rigid motion
+    for the whole sequence, so it removes a different world origin and heading, not errors
+    of the pose from frame to frame."""
+    est, ref = np.asarray(est, np.float64), np.asarray(ref, np.float64)
+    if est.shape != ref.shape or est.ndim != 3 or est.shape[2] != 3 or est.size == 0:
+        raise ValueError(f"need matching non-empty (n, V, 3) arrays, got {est.shape}, {ref.shape}")
+    R, t = align_yaw_translation(est.reshape(-1, 3), ref.reshape(-1, 3))
+    return mpjpe(est @ R.T + t, ref)
 
 
 def ate_yaw_aligned(p_est: np.ndarray, p_ref: np.ndarray) -> float:

@@ -98,6 +98,13 @@ def _point_poses(p: np.ndarray) -> np.ndarray:
     return T
 
 
+def _world_frame_text(initialisation: str) -> str:
+    """What the positions are measured from, for the report's header."""
+    if initialisation == "apriltag":
+        return "the start AprilTag sheet (positions and heading in the sheet's frame)"
+    return "no AprilTag sheet seen: the camera's start position and heading (z up)"
+
+
 def result_summary(r: InferResult, session_facts: dict[str, object]) -> dict[str, object]:
     """The facts ``summary.json`` holds (also the report's header)."""
     seen = r.foot_measured.mean(axis=0)
@@ -112,6 +119,10 @@ def result_summary(r: InferResult, session_facts: dict[str, object]) -> dict[str
             "shank": [float(v) for v in r.skeleton.shank_lengths],
         },
         "standing_frames": r.standing_frames,
+        "world_frame": {
+            "initialisation": r.vio.initialisation,
+            "note": r.vio.initialisation_note,
+        },
         "extrinsic": {
             "T_PfromC": r.extrinsic.T_PfromC.tolist(),
             "spread_pos_m": r.extrinsic.spread_pos_m,
@@ -191,6 +202,7 @@ def _write_report(
         "duration [s]": round(float(r.t_s[-1] - r.t_s[0]), 2),
         "frames": len(r.t_s),
         "body height [m]": round(r.subject_height_m, 2),
+        "world frame": _world_frame_text(r.vio.initialisation),
         "models": f"{Path(r.segmenter_path).name}, {Path(r.predictor_path).name}",
         "software": facts.get("software", ""),
     }

@@ -20,6 +20,10 @@ PITCH_RANGE_DEG = (10.0, 89.0)  # valid mount.pitch_deg values
 FOV_RANGE_DEG = (10.0, 150.0)  # valid horizontal and vertical fields of view
 
 
+DEFAULT_EXPOSURE_RANGE_S = (0.001, 0.030)  # the D455 colour sensor's usable exposures at 30 Hz
+EXPOSURE_STEP_S = 1e-4  # its exposure step
+
+
 @dataclass(frozen=True)
 class CameraConfig:
     """Colour camera (depth is aligned to it). Defaults: a D455 at 640×480, 30 Hz.
@@ -35,7 +39,9 @@ class CameraConfig:
     long smears. ``exposure_time_ref_s`` (0.5–30 ms): the time for the reference brightness
     ``E = 1`` (the default lighting: ~10 ms, an indoor D455 colour exposure);
     ``exposure_time_range_s`` [shortest, longest] within 0.1 ms (the D455 colour sensor's
-    step) and the frame period; ``motion_blur`` false renders the mid-exposure instant only.
+    step) and the frame period; the default range's longest exposure becomes the frame period
+    (to the 0.1 ms step below it) where that is shorter, as on the camera (60 Hz: 16.6 ms);
+    ``motion_blur`` false renders the mid-exposure instant only.
     Sources: docs/references.md, *Simulator realism: rendering*.
     """
 
@@ -48,7 +54,7 @@ class CameraConfig:
     fps: float = 30.0
     motion_blur: bool = True
     exposure_time_ref_s: float = 0.010
-    exposure_time_range_s: tuple[float, float] = (0.001, 0.030)
+    exposure_time_range_s: tuple[float, float] = DEFAULT_EXPOSURE_RANGE_S
 
     def __post_init__(self) -> None:
         check_int_range("width", self.width, 16, 2048)
@@ -61,6 +67,10 @@ class CameraConfig:
         check_range("cy", self.cy, 0.0, float(self.height), " px")
         check_range("fps", self.fps, 1.0, 120.0, " Hz")
         check_range("exposure_time_ref_s", self.exposure_time_ref_s, 0.0005, 0.03, " s")
+        period = 1.0 / self.fps
+        if tuple(self.exposure_time_range_s) == DEFAULT_EXPOSURE_RANGE_S and period < 0.030:
+            longest = max(np.floor(period / EXPOSURE_STEP_S) * EXPOSURE_STEP_S, 0.001)
+            object.__setattr__(self, "exposure_time_range_s", (0.001, round(float(longest), 6)))
         check_each("exposure_time_range_s", self.exposure_time_range_s, 1e-4, 1.0 / self.fps, " s")
         if len(self.exposure_time_range_s) != 2 or (
             self.exposure_time_range_s[0] > self.exposure_time_range_s[1]
