@@ -336,20 +336,29 @@ def test_frames_after_the_first_are_sided_with_their_midline(
     tiny_sim_session: Path, monkeypatch
 ) -> None:
     """The first ``feet.midline_frames`` frames are segmented with the configured parameters;
-    every later one with ``lateral_offset_m`` set to the median of their pair midpoints,
-    whatever the number of segmentation threads."""
+    every later one with ``lateral_offset_m`` set to the median of their pair midpoints and
+    ``forward_in_camera`` to the normalised median of their horizontal optical axes (with the
+    filter's gravity), whatever the number of segmentation threads."""
     import gaitnet.pipeline.infer as infer
     from gaitnet.config import load_config
     from gaitnet.pipeline.foot_points import FrameFeet
+    from gaitnet.segmentation.postprocess import horizontal_forward
 
     class NoSegmenter:
         arch, input_scale, path = "rgb", 0.5, Path("none")
 
     for workers in (1, 2):
         offsets: dict[int, float] = {}
+        forwards: dict[int, object] = {}
+        ups: dict[int, np.ndarray] = {}
 
-        def spy(frame, K, T_WfromC, segmenter, keypoint, hha, params, *args, seen=offsets):
+        def spy(
+            frame, K, T_WfromC, segmenter, keypoint, hha, params, *args,
+            seen=offsets, forwards=forwards, ups=ups,
+        ):  # fmt: skip
             seen[frame.index] = params.lateral_offset_m
+            forwards[frame.index] = params.forward_in_camera
+            ups[frame.index] = T_WfromC[:3, :3].T @ [0.0, 0.0, 1.0]
             labels = np.zeros(frame.depth_m.shape, np.uint8)
             return FrameFeet(np.full((2, 3), np.nan), labels, 2, 0.01 * frame.index**2)
 
@@ -367,3 +376,9 @@ def test_frames_after_the_first_are_sided_with_their_midline(
         median = float(np.median([0.01 * i**2 for i in indices[:8]]))  # the later ones ignored
         assert [offsets[i] for i in indices[:8]] == [0.3] * 8
         np.testing.assert_allclose([offsets[i] for i in indices[8:]], median)
+        assert [forwards[i] for i in indices[:8]] == [None] * 8
+        forward = np.median([horizontal_forward(ups[i]) for i in indices[:8]], axis=0)
+        forward /= np.linalg.norm(forward)
+        np.testing.assert_allclose(
+            [forwards[i] for i in indices[8:]], [forward] * (len(indices) - 8)
+        )

@@ -11,10 +11,16 @@ import pytest
 
 from gaitnet.config import load_config
 from gaitnet.errors import InputError
-from gaitnet.segmentation.midline import MIN_PAIRS, MidlineEstimate, pair_midpoint
+from gaitnet.segmentation.midline import (
+    MIN_FORWARD_FRAMES,
+    MIN_PAIRS,
+    MidlineEstimate,
+    pair_midpoint,
+)
 from gaitnet.segmentation.postprocess import (
     FootKeypointParams,
     foot_keypoints,
+    horizontal_forward,
     kept_feet_labels,
     left_axis,
 )
@@ -390,3 +396,89 @@ def test_the_midline_from_the_standing_frames_sides_a_lone_foot() -> None:
         pair_midpoint(foot_keypoints(labels, *floor_depth()[:1], K, close, gravity_C=g), close)
         is None
     )
+
+
+def _rot_x(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _camera_on_pelvis(pitch_deg: float) -> np.ndarray:
+    """R_WfromC of a camera on a pelvis facing world +x, pitched down (x right, y down)."""
+    t = math.radians(pitch_deg)
+    z = np.array([math.cos(t), 0.0, -math.sin(t)])
+    x = np.array([0.0, -1.0, 0.0])
+    return np.stack([x, np.cross(z, x), z], axis=1)
+
+
+@pytest.mark.parametrize("pitch_deg", [40.0, 70.0, 85.0])
+def test_body_forward_keeps_the_left_axis_under_pelvic_obliquity(pitch_deg: float) -> None:
+    """A pelvis tilted sideways (obliquity, a rotation about the walking direction) swings the
+    horizontal optical axis sideways by about tan(pitch) times the tilt; the standing frames'
+    horizontal optical axis, fixed to the camera, stays the body's forward exactly."""
+    R_stand = _camera_on_pelvis(pitch_deg)
+    up_stand = R_stand.T @ [0.0, 0.0, 1.0]
+    estimate = MidlineEstimate(FootKeypointParams(midline_frames=10))
+    for _ in range(MIN_FORWARD_FRAMES):
+        estimate.add(None, up_C=up_stand)
+    forward_C = estimate.params().forward_in_camera
+    assert forward_C is not None
+    np.testing.assert_allclose(R_stand @ forward_C, [1.0, 0.0, 0.0], atol=1e-12)
+    tilt = math.radians(4.0)
+    R_walk = _rot_x(tilt) @ R_stand
+    up_walk = R_walk.T @ [0.0, 0.0, 1.0]
+    true_left = R_walk.T @ [0.0, 1.0, 0.0]  # the tilted body's left, made horizontal
+    np.testing.assert_allclose(left_axis(up_walk, np.array(forward_C)), true_left, atol=1e-12)
+    optical = left_axis(up_walk)
+    error_deg = math.degrees(math.acos(np.clip(optical @ true_left, -1, 1)))
+    expected = math.degrees(math.atan(math.tan(math.radians(pitch_deg)) * math.sin(tilt)))
+    assert error_deg == pytest.approx(expected, rel=0.05)
+    assert (error_deg > 20) == (pitch_deg > 80)  # 38° at 85°, 11° at 70°
+
+
+def test_forward_estimate_needs_frames_and_keeps_a_given_forward() -> None:
+    params = FootKeypointParams(midline_frames=20)
+    estimate = MidlineEstimate(params)
+    ups = [_camera_on_pelvis(70.0).T @ _rot_x(a) @ [0.0, 0.0, 1.0] for a in (-0.05, 0.0, 0.05)]
+    for k in range(MIN_FORWARD_FRAMES - 1):
+        estimate.add(None, up_C=ups[k % 3])
+        estimate.add(None)  # gravity unknown: counts, adds nothing
+        estimate.add(None, up_C=np.array([np.nan, 0.0, 1.0]))
+    assert estimate.forward_C is None and estimate.params() is params
+    estimate.add(None, up_C=ups[0])
+    forward = estimate.forward_C
+    assert forward is not None and np.linalg.norm(forward) == pytest.approx(1.0)
+    added = [ups[k % 3] for k in range(MIN_FORWARD_FRAMES - 1)] + [ups[0]]
+    medians = np.median([horizontal_forward(u) for u in added], axis=0)
+    np.testing.assert_allclose(forward, medians / np.linalg.norm(medians), atol=1e-12)
+    assert estimate.params().forward_in_camera == pytest.approx(tuple(forward))
+    given = FootKeypointParams(midline_frames=20, forward_in_camera=(1.0, 0.0, 0.0))
+    kept = MidlineEstimate(given)
+    for u in ups * 2:
+        kept.add(None, up_C=u)
+    assert kept.params().forward_in_camera == (1.0, 0.0, 0.0)
+
+
+def test_forward_in_camera_acts_and_is_checked() -> None:
+    """A lone foot is sided by its position along ``up × forward``: with the optical axis as
+    forward, by the side of the image it is on; with the body's forward given as the camera's
+    right (a camera turned 90° on the body), every foot ahead of the camera is on the body's
+    left, and with the camera's left as forward on its right, by its distance ahead."""
+    sides = {}
+    for name, forward in (("optical", None), ("right", (1.0, 0.0, 0.0)), ("left", (-1.0, 0, 0))):
+        params = replace(NO_SPLIT, forward_in_camera=forward)
+        for u0 in (40, 108):  # left and right of the image centre
+            depth, g = floor_depth()
+            labels = np.zeros((H, W), np.uint8)
+            foot_box(labels, depth, g, u0, u0 + 12, 60, 85)
+            (foot,) = foot_keypoints(labels, depth, K, params, gravity_C=g)
+            sides[name, u0] = foot.side
+            if forward is not None:
+                ahead = horizontal_forward(-g) @ foot.keypoints_C["mid"]
+                assert foot.lateral_m == pytest.approx(ahead * forward[0], rel=1e-9)
+    assert sides["optical", 40] == "left" and sides["optical", 108] == "right"
+    assert sides["right", 40] == sides["right", 108] == "left"
+    assert sides["left", 40] == sides["left", 108] == "right"
+    for bad in ((0.0, 0.0, 0.0), (1.0, float("nan"), 0.0), (1.0, 0.0)):
+        with pytest.raises(ValueError, match="forward_in_camera"):
+            FootKeypointParams(forward_in_camera=bad)  # type: ignore[arg-type]

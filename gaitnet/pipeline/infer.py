@@ -237,7 +237,7 @@ def observe(
     def take_until(n_left: int) -> None:
         while len(pending) > n_left:
             t_ns, feet, cpu_s = pending.popleft().result()
-            midline.add(feet.pair_midpoint_m)
+            midline.add(feet.pair_midpoint_m, up_C=T_filter[len(feet_f)][2, :3])
             feet_f.append(feet.foot_W)
             frame_ns.append(t_ns)
             timings["segmenter_cpu"] += cpu_s
@@ -256,6 +256,11 @@ def observe(
                         "body midline %.3f m left of the camera (from %d frames with both feet)",
                         midline.offset_m, len(midline.midpoints),
                     )  # fmt: skip
+                if feet_params[0].forward_in_camera is not None:
+                    log.info(
+                        "body forward in the camera frame %s",
+                        np.round(feet_params[0].forward_in_camera, 3).tolist(),
+                    )
             T_filter.append(T_WfromC.copy())
             pending.append(pool.submit(one, frame, T_WfromC.copy(), feet_params[0]))
             take_until(2 * workers)

@@ -30,9 +30,11 @@ treated as background) and the aligned depth image into one :class:`FootDetectio
    pixel (``K``). Fewer than ``min_depth_pixels`` valid depths there: the point is missing
    (``None`` in :attr:`FootDetection.keypoints_C`), never NaN.
 4. **Left / right.** The lateral axis is ``left = up × forward`` with ``up`` from gravity (or
-   the floor normal) and ``forward`` the camera's optical axis projected on the floor (the
-   camera's ``−y`` when it looks straight down); without either, ``left`` is the camera's
-   ``−x``. A foot's lateral position is its mid point's 3-D position along ``left`` (or, when
+   the floor normal) and ``forward`` the body's forward in the camera frame
+   (``forward_in_camera``, which ``gaitnet segment`` and ``gaitnet infer`` estimate from the
+   standing frames at the start, :mod:`gaitnet.segmentation.midline`; until then, and by
+   default, the camera's optical axis) projected on the floor (the camera's ``−y`` when that is
+   nearly vertical); without ``up``, ``left`` is the camera's ``−x``. A foot's lateral position is its mid point's 3-D position along ``left`` (or, when
    the mid point has no depth, where the mid pixel's ray meets the floor; without a floor, the
    ray's direction at unit depth). Two feet further apart than ``min_separation_m`` laterally:
    the one more to the left is left. Otherwise, and with one foot in view, each foot on its own:
@@ -128,10 +130,16 @@ class FootKeypointParams:
     feet wrong: the lone foot's own leg is often out of view and the other leg touches it."""
     lateral_offset_m: float = 0.0
     """The body's midline along the camera's left axis [m] (a camera worn off-centre)."""
+    forward_in_camera: tuple[float, float, float] | None = None
+    """The body's forward as a direction in the camera frame (x right, y down, z along the
+    optical axis; any length), which the left axis is made from (module docstring); None: the
+    optical axis, until ``gaitnet segment`` and ``gaitnet infer`` have estimated it from the
+    first ``midline_frames`` frames (:mod:`gaitnet.segmentation.midline`)."""
     midline_frames: int = 30
     """``gaitnet segment`` and ``gaitnet infer`` estimate ``lateral_offset_m`` from the frames
     among the first this many where both feet are sided apart (standing at the start), and
-    side the later frames with it (:mod:`gaitnet.segmentation.midline`); 0: never."""
+    ``forward_in_camera`` from those with gravity known, and side the later frames with them
+    (:mod:`gaitnet.segmentation.midline`); 0: never."""
     max_distance_m: float = 1.0
     """A foot whose mid point lies farther than this from the camera along the floor (measured
     perpendicular to up) is not a foot but something on the floor ahead that the segmenter took
@@ -163,6 +171,14 @@ class FootKeypointParams:
         check_range("min_lateral_m", self.min_lateral_m, 0.0, 10.0, " m")
         check_range("lateral_offset_m", self.lateral_offset_m, -10.0, 10.0, " m")
         check_int_range("midline_frames", self.midline_frames, 0, 100_000)
+        if self.forward_in_camera is not None:
+            f = np.asarray(self.forward_in_camera, dtype=np.float64)
+            if f.shape != (3,) or not np.all(np.isfinite(f)) or np.linalg.norm(f) < 1e-6:
+                raise ValueError(
+                    "forward_in_camera must be 3 finite numbers, not all 0, or null; got "
+                    f"{list(np.ravel(f))}"
+                )
+            object.__setattr__(self, "forward_in_camera", tuple(float(v) for v in f))
         check_range("split_width_m", self.split_width_m, 0.0, 10.0, " m")
         if not self.max_distance_m > 0.1:  # also refuses NaN; inf is allowed
             raise ValueError(f"max_distance_m must be > 0.1 m, got {self.max_distance_m!r}")
@@ -211,17 +227,25 @@ def _ray(K: np.ndarray, u: float, v: float) -> np.ndarray:
     return np.array([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], 1.0])
 
 
-def left_axis(up_C: np.ndarray | None) -> np.ndarray:
-    """The body's left in the camera frame: ``up × forward`` (module docstring)."""
-    if up_C is None:
-        return np.array([-1.0, 0.0, 0.0])
+def horizontal_forward(up_C: np.ndarray, forward_C: np.ndarray | None = None) -> np.ndarray:
+    """``forward_C`` (default: the optical axis) made horizontal (perpendicular to ``up_C``) and
+    unit, in the camera frame; the image's up where that is nearly vertical (a camera looking
+    straight down)."""
     up = up_C / np.linalg.norm(up_C)
-    forward = np.array([0.0, 0.0, 1.0])
+    forward = np.array([0.0, 0.0, 1.0]) if forward_C is None else np.asarray(forward_C, float)
     forward = forward - (forward @ up) * up
     if np.linalg.norm(forward) < 0.05:  # looking straight down: image up is forward
         forward = np.array([0.0, -1.0, 0.0]) - (-up[1]) * up
-    forward /= np.linalg.norm(forward)
-    return np.cross(up, forward)
+    return forward / np.linalg.norm(forward)
+
+
+def left_axis(up_C: np.ndarray | None, forward_C: np.ndarray | None = None) -> np.ndarray:
+    """The body's left in the camera frame: ``up × forward`` (module docstring); ``forward_C``
+    the body's forward in the camera frame (``forward_in_camera``), else the optical axis."""
+    if up_C is None:
+        return np.array([-1.0, 0.0, 0.0])
+    up = up_C / np.linalg.norm(up_C)
+    return np.cross(up, horizontal_forward(up, forward_C))
 
 
 def _keypoint_pixels(mask: np.ndarray, p: FootKeypointParams) -> dict[str, tuple[float, float]]:
@@ -346,7 +370,7 @@ def foot_keypoints(
         plane = find_floor(z, K, None if up is None else up / np.linalg.norm(up), p.floor)
     if up is None and plane is not None:
         up = np.asarray(plane.n_C, dtype=np.float64)
-    left = left_axis(up)
+    left = left_axis(up, p.forward_in_camera)
     height = height_map(z, K, plane) if plane is not None else None
     feet: list[FootDetection] = []
     min_area = max(p.min_area_fraction * H * W, 1)

@@ -182,7 +182,7 @@ def segment_session(
                 labels, frame.depth_m, K, keypoint_params, gravity_C=gravity, plane=plane
             )
             if midline.collecting:
-                midline.add(pair_midpoint(feet, keypoint_params))
+                midline.add(pair_midpoint(feet, keypoint_params), up_C=up)
                 if not midline.collecting:
                     keypoint_params = midline.params()
             if not options.raw_labels:
