@@ -19,7 +19,9 @@
 - ``report.html``: the self-contained gait report (header, time-distance table per side with
   symmetry indices, per-stride table, figures), and the figures as PNG
   (``foot_trajectories.png``, ``top_view.png``, ``joint_angles.png``, ``gait_phases.png``);
-- ``summary.json``: session facts, models, skeleton, extrinsic, the gait summary, timings.
+- ``summary.json``: session facts, models, skeleton, the world frame (``world_frame``: the
+  filter's initialisation, ``apriltag`` or ``gravity_floor``, and its note), extrinsic, the
+  gait summary, timings.
 """
 
 from __future__ import annotations
