@@ -395,3 +395,35 @@ def test_a_stance_beside_a_resting_foot_is_not_that_foot() -> None:
     assert len(stances) == 3
     sides = trk.sides_at({s.id: p for s, (p, _, _) in zip(stances, steps, strict=True)})
     assert [sides[s.id] for s in stances] == ["right", "left", "left"]
+
+
+@pytest.mark.parametrize("fps", [15.0, 30.0, 60.0])
+def test_a_stance_is_confirmed_after_the_same_time_at_any_frame_rate(fps: float) -> None:
+    """``confirm_s``: a foot resting from t = 0 becomes a stance at the first frame at least
+    0.06 s later (the 2nd at 15 Hz, the 3rd at 30 Hz, the 5th at 60 Hz), and a swing foot
+    passing through the band at 1.5 m/s, 2.5 cm per frame at 60 Hz, never does."""
+    p = np.array([1.0, -0.08])
+    trk = StanceTracker()
+    confirmed_at = None
+    for i in range(10):
+        t = i / fps
+        (out,) = trk.update(t, [p], heading_W=np.array([1.0, 0.0]))
+        if out is not None and out.is_new:
+            confirmed_at = t
+    assert confirmed_at == pytest.approx(np.ceil(0.06 * fps - 1e-9) / fps)
+    assert StanceTracker(StanceParams(confirm_s=0.0)).update(0.0, [p])[0].is_new
+    passing = StanceTracker()
+    for i in range(int(0.05 * fps) + 1):  # 0.05 s within the radius, then gone
+        assert passing.update(i / fps, [p + [1.5 * i / fps, 0.0]]) == [None]
+    assert passing.finish() == []
+
+
+def test_stance_params_are_checked() -> None:
+    for bad in (
+        {"assoc_radius_m": -1.0},
+        {"confirm_s": -0.1},
+        {"max_gap_s": float("nan")},
+        {"double_support_cost": -1.0},
+    ):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            StanceParams(**bad)

@@ -13,8 +13,8 @@ candidate is not (yet) part of a stance.
 Grouping. A stance is a foot staying within ``assoc_radius_m`` of the same floor point.
 Candidates are associated greedily (nearest first) with open tracks whose mean point is within
 the radius; an unmatched candidate starts a tentative track, which becomes a stance once it has
-``confirm_frames`` observations (a swing foot passing through the height band moves ~10 cm per
-frame and never does); ``is_new`` is True on that frame (the filter augments the landmark then).
+been observed for ``confirm_s`` (a swing foot passing through the height band moves ~10 cm per
+frame and never is); ``is_new`` is True on that frame (the filter augments the landmark then).
 A track not observed for ``max_gap_s`` is closed: the foot left (lifted, or out of view). A
 closed stance observed again within ``reopen_s`` at the same point (the foot was hidden by the
 other leg) is re-opened under the same id instead of starting a duplicate.
@@ -48,8 +48,11 @@ import logging
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from typing import ClassVar
 
 import numpy as np
+
+from gaitnet.checks import check_positive, check_range
 
 log = logging.getLogger(__name__)
 
@@ -64,9 +67,15 @@ class StanceParams:
     """A candidate within this distance [m] of a track's mean point belongs to it: a flat foot's
     detected point scatters by ~2 mm (benchmark), a pose drifting during a stance and the
     heel-strike-to-foot-flat roll add ~1–2 cm; swing feet move ~10 cm per frame."""
-    confirm_frames: int = 3
-    """Observations before a track is a stance (0.1 s at 30 Hz; a flat interval in walking lasts
-    ~0.3 s)."""
+    confirm_s: float = 0.06
+    """How long a track must have been observed (its latest observation's time minus its
+    first's) before it is a stance [s]: its third frame at 30 Hz, its fifth at 60 Hz (a flat
+    interval in walking lasts ~0.3 s; a swing foot passing through the height band moves ~10 cm
+    per frame at 30 Hz, ~5 cm at 60 Hz, and does not stay within the radius that long); 0:
+    at once. A count of frames (3 until 2026-11-28) confirmed stances twice as early at 60 Hz,
+    so the landmark's first frame, which ``gaitnet infer``'s swing fill reads as the foot flat,
+    came 0.05 s earlier against the foot's heel strike and the filled swings ran ahead (foot
+    NMATE of the filled frames 9.1 / 5.4 cm on a simulated 60 Hz walk)."""
     max_gap_s: float = 0.15
     """Close a track not observed for this long [s] (≈ 4 frames at 30 Hz)."""
     reopen_s: float = 1.0
@@ -102,6 +111,21 @@ class StanceParams:
     same time less than ``assoc_radius_m`` apart (one foot found twice). 0: neither rule."""
     same_foot_s: float = 0.2
     """See ``same_foot_m`` [s]: a foot lifted and set down elsewhere swings for 0.35–0.45 s."""
+
+    # keys of older configs and what took their place (named in the error)
+    REPLACED_KEYS: ClassVar[dict[str, str]] = {
+        "confirm_frames": "confirm_s (seconds a track must span; 0.06 is 3 frames at 30 Hz)",
+    }
+
+    def __post_init__(self) -> None:
+        for name in ("assoc_radius_m", "side_sigma_m", "same_side_sigma_m", "camera_sigma_m"):
+            check_positive(name, getattr(self, name), " m")
+        check_positive("max_camera_offset_m", self.max_camera_offset_m, " m")
+        for name in ("confirm_s", "max_gap_s", "reopen_s", "tie_s", "same_foot_s"):
+            check_range(name, getattr(self, name), 0.0, 60.0, " s")
+        for name in ("same_side_cost", "double_support_cost"):
+            check_range(name, getattr(self, name), 0.0, 1e6)
+        check_range("same_foot_m", self.same_foot_m, 0.0, 10.0, " m")
 
 
 @dataclass(frozen=True)
@@ -219,7 +243,7 @@ class StanceTracker:
             used_t.add(j)
             tr = self._open[j]
             tr.obs.append((t_s, xy[i]))
-            if tr.stance is None and len(tr.obs) >= P.confirm_frames:
+            if tr.stance is None and t_s - tr.obs[0][0] >= P.confirm_s:
                 self._confirm(tr, cam)
                 relabel = True
                 out[i] = ("new", tr)  # type: ignore[assignment]
@@ -237,7 +261,7 @@ class StanceTracker:
             else:
                 tr = _Track(obs=[(t_s, p)])
                 self._open.append(tr)
-                if P.confirm_frames <= 1:
+                if P.confirm_s <= 0:
                     self._confirm(tr, cam)
                     relabel = True
                     out[i] = ("new", tr)  # type: ignore[assignment]
