@@ -35,8 +35,8 @@ treated as background) and the aligned depth image into one :class:`FootDetectio
    standing frames at the start, :mod:`gaitnet.segmentation.midline`; until then, and by
    default, the camera's optical axis) projected on the floor (the camera's ``−y`` when that is
    nearly vertical); without ``up``, ``left`` is the camera's ``−x``. A foot's lateral position
-   is its mid point's 3-D position along ``left`` (or, when the mid point has no depth, where the mid pixel's ray meets the floor; without a floor, the
-   ray's direction at unit depth). Two feet further apart than ``min_separation_m`` laterally:
+   is its mid point's 3-D position along ``left`` (or, when the mid point has no depth, where
+   the mid pixel's ray meets the floor; without a floor, the ray's direction at unit depth). Two feet further apart than ``min_separation_m`` laterally:
    the one more to the left is left. Otherwise, and with one foot in view, each foot on its own:
    the sign of its lateral position minus ``lateral_offset_m`` says the side. Optionally, in a
    band ``± min_lateral_m`` around zero (0 by default: measured worse, see the key), the leg
