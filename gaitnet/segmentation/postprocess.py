@@ -36,20 +36,20 @@ treated as background) and the aligned depth image into one :class:`FootDetectio
    default, the camera's optical axis) projected on the floor (the camera's ``−y`` when that is
    nearly vertical); without ``up``, ``left`` is the camera's ``−x``. A foot's lateral position
    is its mid point's 3-D position along ``left`` (or, when the mid point has no depth, where
-   the mid pixel's ray meets the floor; without a floor, the ray's direction at unit depth). Two feet further apart than ``min_separation_m`` laterally:
-   the one more to the left is left. Otherwise, and with one foot in view, each foot on its own:
-   the sign of its lateral position minus ``lateral_offset_m`` says the side. Optionally, in a
-   band ``± min_lateral_m`` around zero (0 by default: measured worse, see the key), the leg
-   blob attached to the foot (the leg blob with most pixels within ``attach_px`` of the foot)
-   says it, by the lateral direction of the leg's pixel farthest from the foot (its hip end);
-   with no attached leg the side is ``"unknown"``. Feet beyond the two largest are
-   ``"unknown"``. A blob that spreads wider along ``left`` than one shoe can
-   (``split_width_m``) is two feet merged by the segmenter's rim (feet side by side are a few
-   centimetres apart): it is split in two at Otsu's threshold of its pixels' lateral positions
-   before the keypoints are found. On the default simulated session the true label maps show
-   two separate feet in 211 frames, the committed segmenter's in only 43 (a merged blob is
-   sided as one foot by its lateral position: 79 of 265 such feet got the wrong side); split,
-   402 of 408 paired feet and all 104 lone feet get their true side.
+   the mid pixel's ray meets the floor; without a floor, the ray's direction at unit depth). Two
+   feet further apart than ``min_separation_m`` laterally: the one more to the left is left.
+   Otherwise, and with one foot in view, each foot on its own: the sign of its lateral position
+   minus ``lateral_offset_m`` says the side. Optionally, in a band ``± min_lateral_m`` around
+   zero (0 by default: measured worse, see the key), the leg blob attached to the foot (the leg
+   blob with most pixels within ``attach_px`` of the foot) says it, by the lateral direction of
+   the leg's pixel farthest from the foot (its hip end); with no attached leg the side is
+   ``"unknown"``. Feet beyond the two largest are ``"unknown"``. A blob that spreads wider along
+   ``left`` than one shoe can (``split_width_m``) is two feet merged by the segmenter's rim
+   (feet side by side are a few centimetres apart): it is split in two at Otsu's threshold of
+   its pixels' lateral positions before the keypoints are found. On the default simulated
+   session the true label maps show two separate feet in 211 frames, the committed segmenter's
+   in only 43 (a merged blob is sided as one foot by its lateral position: 79 of 265 such feet
+   got the wrong side); split, 402 of 408 paired feet and all 104 lone feet get their true side.
 
    The rule assumes a camera worn at the middle of the waist looking forward-down; it fails
    where a foot crosses the body's midline (cross-over steps, turning on the spot), where the
