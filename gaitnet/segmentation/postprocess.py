@@ -54,10 +54,10 @@ treated as background) and the aligned depth image into one :class:`FootDetectio
    The rule assumes a camera worn at the middle of the waist looking forward-down; it fails
    where a foot crosses the body's midline (cross-over steps, turning on the spot), where the
    camera is worn off-centre (``lateral_offset_m``, which ``gaitnet segment`` and ``gaitnet
-   infer`` estimate from the first frames: ``midline_frames``) or yawed so far that the projected
-   optical axis misses the walking direction by more than the feet's half-spacing over their
-   distance, and where a foot turned sideways spreads wider than ``split_width_m`` (it is
-   split in two).
+   infer`` estimate from the first frames: ``midline_frames``) or yawed on the body so far that
+   its projected optical axis while standing misses the walking direction by more than the
+   feet's half-spacing over their distance, and where a foot turned sideways spreads wider than
+   ``split_width_m`` (it is split in two).
 """
 
 from __future__ import annotations
