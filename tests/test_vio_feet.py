@@ -160,9 +160,49 @@ def test_bridging_does_not_join_two_feet():
     pts = sorted((_to_world(T, c.p_FinC)[:2] for c in cands), key=lambda p: p[1])
     for p, true in zip(pts, (right, left), strict=True):
         assert np.linalg.norm(p - true) < 0.01
-    # without the width limit the bridged pair is one "foot" between the two
-    (joined,) = detect_foot_candidates(depth, K, _plane(T), replace(params, max_width_m=1.0))
+    # without the width limit and the split of a pair the bridged pair is one "foot" between
+    # the two
+    unlimited = replace(params, max_width_m=1.0, split_width_m=0.0)
+    (joined,) = detect_foot_candidates(depth, K, _plane(T), unlimited)
     assert abs(_to_world(T, joined.p_FinC)[1]) < 0.03
+
+
+@pytest.mark.parametrize("toe_out", [0.0, 0.06])
+def test_shoes_touching_side_by_side_are_two_feet(toe_out: float) -> None:
+    """Two shoes standing side by side that touch (heels together; ``toe_out`` moves the right
+    one back: a V seen in boxes) are one component of foot pixels, too wide for one foot: it
+    is split across the walk into two candidates at the shoes; without the split there is
+    none."""
+    T = _pose(height=1.1)
+    left, right = np.array([0.8, 0.05]), np.array([0.8 - toe_out, -0.05])
+    depth = _render(T, [_shoe(*left), _shoe(*right)])
+    params = FootParams(shoe_length_m=0.26, toe_margin_m=0.0)
+    cands = detect_foot_candidates(depth, K, _plane(T), params)
+    assert len(cands) == 2
+    pts = sorted((_to_world(T, c.p_FinC)[:2] for c in cands), key=lambda p: p[1])
+    for p, true in zip(pts, (right, left), strict=True):
+        assert np.linalg.norm(p - true) < 0.015
+    assert detect_foot_candidates(depth, K, _plane(T), replace(params, split_width_m=0.0)) == []
+
+
+def test_a_shoe_across_the_walk_is_not_split() -> None:
+    """A shoe turned 90° (a turn on the spot) is as wide across the walk as two feet, but its
+    halves lie across the walk: one candidate."""
+    T = _pose(height=1.1)
+    across = (0.75, 0.85, -0.13, 0.13, 0.0, 0.07)  # 0.26 long along y
+    (cand,) = detect_foot_candidates(_render(T, [across]), K, _plane(T), FootParams())
+    assert abs(_to_world(T, cand.centroid_C)[1]) < 0.02
+
+
+def test_otsu_split_separates_two_modes() -> None:
+    from gaitnet.geometry.two_groups import otsu_split
+
+    rng = np.random.default_rng(0)
+    values = np.concatenate([rng.normal(-0.05, 0.01, 300), rng.normal(0.06, 0.01, 200)])
+    upper = otsu_split(values, *np.percentile(values, [5, 95]))
+    assert upper.sum() == 200 and upper[300:].all()
+    same = otsu_split(values, -1.0, 1.0)  # coarser codes, the same two groups
+    np.testing.assert_array_equal(same, upper)
 
 
 # ------------------------------------------------------------------ stance tracker
@@ -427,3 +467,30 @@ def test_stance_params_are_checked() -> None:
     ):
         with pytest.raises(ValueError, match=next(iter(bad))):
             StanceParams(**bad)
+
+
+def test_foot_params_are_checked() -> None:
+    for bad in (
+        {"h_min_m": -0.1},
+        {"h_max_m": 0.001},  # below h_min_m
+        {"stride": 0},
+        {"min_area_m2": 0.0},
+        {"max_width_m": float("nan")},
+        {"split_width_m": -0.1},
+        {"max_candidates": 0},
+    ):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            FootParams(**bad)
+
+
+def test_a_stance_reopened_behind_another_closed_one() -> None:
+    """Two stances seen at the same times, both closed, the second seen again: it is re-opened
+    (closed tracks are found by identity; comparing their fields, arrays, raised)."""
+    a, b = np.array([0.0, 0.1]), np.array([0.0, -0.1])
+    trk = StanceTracker(StanceParams(max_gap_s=0.15, reopen_s=1.0))
+    for i in range(3):
+        trk.update(0.1 * i, [a, b], heading_W=np.array([1.0, 0.0]))
+    trk.update(0.5, [], heading_W=np.array([1.0, 0.0]))  # both closed
+    (out,) = trk.update(0.6, [b], heading_W=np.array([1.0, 0.0]))
+    assert out is not None and not out.is_new
+    assert len(trk.finish()) == 2

@@ -72,6 +72,7 @@ import numpy as np
 from gaitnet.checks import check_int_range, check_range
 from gaitnet.errors import InputError
 from gaitnet.geometry.floor_plane import FloorPlane, height_map
+from gaitnet.geometry.two_groups import otsu_split
 from gaitnet.segmentation.hha import HhaParams, find_floor
 
 log = logging.getLogger(__name__)
@@ -419,10 +420,9 @@ def _split_merged(
     lo, hi = np.percentile(lateral, [5, 95])
     if hi - lo <= width:
         return [mask]
-    codes = np.round(255 * (np.clip(lateral, lo, hi) - lo) / (hi - lo)).astype(np.uint8)
-    threshold, _ = cv2.threshold(codes[None], 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    upper = otsu_split(lateral, lo, hi)
     parts = []
-    for side in (codes > threshold, codes <= threshold):
+    for side in (upper, ~upper):
         part = np.zeros_like(mask)
         part[v[side], u[side]] = True
         parts.append(part)

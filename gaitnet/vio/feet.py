@@ -16,6 +16,13 @@ anything, so two feet stay apart unless a hole (a stereo shadow) spans the floor
 A joined group that fails the size limits (e.g. two feet side by side: too wide) is tried
 piece by piece instead.
 
+Feet side by side. Two shoes that touch (standing with the heels together and the toes out)
+are one component. One wider across the walking direction than one shoe (``split_width_m``)
+is split at Otsu's threshold of its pixels' lateral positions
+(:func:`gaitnet.geometry.two_groups.otsu_split`); the halves are two candidates when both
+pass the size limits and lie side by side (:func:`_split_pair`: two feet, not one shoe cut
+in two), else the component is what it was.
+
 Foot point: the measured foot position (3.26) is compared with a landmark on ``z = 0`` (3.35),
 so it must lie ON the floor (thesis notes). The component's 3-D points are projected
 orthogonally onto the fitted plane and described in a floor frame with the walking direction
@@ -48,9 +55,18 @@ from dataclasses import dataclass
 import cv2 as cv
 import numpy as np
 
+from gaitnet.checks import check_int_range, check_positive, check_range
 from gaitnet.geometry.floor_plane import FloorPlane, height_map
+from gaitnet.geometry.two_groups import otsu_split
 
 log = logging.getLogger(__name__)
+
+MIN_AXIS_COS = math.cos(math.radians(45.0))
+"""Each half of a split component must have its main floor axis within 45° of the walking
+direction (feet standing side by side point forward, toes out by 5–20°)."""
+MIN_PAIR_APART_M = 0.08
+"""The two halves of a split component are two feet only if their points lie at least this far
+apart [m]: the sole centres of feet side by side are at least a shoe width (~0.1 m) apart."""
 
 __all__ = ["FootCandidate", "FootParams", "detect_foot_candidates"]
 
@@ -108,6 +124,35 @@ class FootParams:
     border_px: int = 2
     """A component within this many pixels (full resolution) of the image border is flagged
     ``at_border`` (the foot is entering or leaving the image: its centroid is biased)."""
+    split_width_m: float = 0.16
+    """A component wider than this across the walking direction (4 standard deviations of its
+    points' lateral positions, as ``max_width_m`` measures width) is tried as two feet side by
+    side (module docstring); 0: never. One shoe walking straight gives about 0.12 m; two shoes
+    standing with the heels together and the toes out 20° touch and gave one component, one
+    stance foot between the two (a simulated session, ``gait.toe_out_deg=20
+    gait.step_width_m=0.03``, seed 9110)."""
+
+    def __post_init__(self) -> None:
+        check_range("h_min_m", self.h_min_m, 0.0, 1.0, " m")
+        check_range("h_max_m", self.h_max_m, self.h_min_m, 2.0, " m")
+        check_int_range("stride", self.stride, 1, 16)
+        check_positive("min_area_m2", self.min_area_m2, " m²")
+        check_range("max_area_m2", self.max_area_m2, self.min_area_m2, 100.0, " m²")
+        for name in ("max_length_m", "max_width_m", "shoe_length_m"):
+            check_positive(name, getattr(self, name), " m")
+        for name in ("hole_bridge_m", "toe_margin_m", "split_width_m"):
+            check_range(name, getattr(self, name), 0.0, 10.0, " m")
+        check_int_range("min_pixels", self.min_pixels, 1)
+        check_int_range("max_candidates", self.max_candidates, 1)
+        check_int_range("border_px", self.border_px, 0)
+        if not 0.0 <= self.top_height_fraction < 1.0:  # also refuses NaN
+            raise ValueError(
+                f"top_height_fraction must be in [0, 1), got {self.top_height_fraction!r}"
+            )
+        if self.point_method not in ("toe", "centroid", "ray"):
+            raise ValueError(
+                f"point_method must be 'toe', 'centroid' or 'ray', got {self.point_method!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -187,24 +232,46 @@ class _Image:
     side: np.ndarray
 
 
-def _candidate(img: _Image, unit: list[int], params: FootParams) -> FootCandidate | None:
-    """The candidate of the foot pixels with labels ``unit`` (one component, or the pieces of
-    one split by depth holes), None when it fails the size limits (or the ray misses)."""
+def _unit_box(img: _Image, unit: list[int]) -> tuple[int, int, int, int, np.ndarray]:
+    """The bounding box ``x0, y0, x1, y1`` (working resolution) of the pixels with labels
+    ``unit`` and their mask within it."""
     st = img.stats[unit]
     x0 = int(st[:, cv.CC_STAT_LEFT].min())
     y0 = int(st[:, cv.CC_STAT_TOP].min())
     x1 = int((st[:, cv.CC_STAT_LEFT] + st[:, cv.CC_STAT_WIDTH]).max())
     y1 = int((st[:, cv.CC_STAT_TOP] + st[:, cv.CC_STAT_HEIGHT]).max())
-    area_px = int(st[:, cv.CC_STAT_AREA].sum())
     lab_sub = img.labels[y0:y1, x0:x1]
     sub = lab_sub == unit[0] if len(unit) == 1 else np.isin(lab_sub, unit)
-    Ks, K, s, plane = img.Ks, img.K, img.s, img.plane
+    return x0, y0, x1, y1, sub
+
+
+def _points(img: _Image, x0: int, y0: int, sub: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Pixel coordinates ``vv, uu`` (in the box), rays ``(x_n, y_n, 1)`` and camera-frame
+    points of the mask ``sub`` whose box starts at ``x0, y0``."""
+    Ks = img.Ks
     vv, uu = np.nonzero(sub)
-    z = img.d[y0:y1, x0:x1][sub].astype(np.float64)
+    z = img.d[y0 : y0 + sub.shape[0], x0 : x0 + sub.shape[1]][sub].astype(np.float64)
     x_n = (uu + x0 - Ks[0, 2]) / Ks[0, 0]
     y_n = (vv + y0 - Ks[1, 2]) / Ks[1, 1]
     rays = np.stack([x_n, y_n, np.ones_like(x_n)], axis=1)
-    P = rays * z[:, None]
+    return vv, uu, rays, rays * z[:, None]
+
+
+def _candidate(
+    img: _Image, unit: list[int], params: FootParams, keep: np.ndarray | None = None
+) -> FootCandidate | None:
+    """The candidate of the foot pixels with labels ``unit`` (one component, or the pieces of
+    one split by depth holes), only those of the box mask ``keep`` where given (one foot of
+    two, :func:`_split_pair`); None when it fails the size limits (or the ray misses)."""
+    x0, y0, x1, y1, sub = _unit_box(img, unit)
+    if keep is not None:
+        sub = sub & keep
+        if not sub.any():
+            return None
+    area_px = int(sub.sum())
+    Ks, K, s, plane = img.Ks, img.K, img.s, img.plane
+    vv, uu, rays, P = _points(img, x0, y0, sub)
+    z = P[:, 2]
     # Floor-projected area: a pixel at depth z on a floor-parallel surface covers
     # z² / (fx fy) / |n·r| (r = (x_n, y_n, 1)); grazing rays are clamped at |n·r̂| ≥ 0.2.
     n_dot = np.maximum(np.abs(rays @ plane.n_C), 0.2 * np.linalg.norm(rays, axis=1))
@@ -266,6 +333,36 @@ def _candidate(img: _Image, unit: list[int], params: FootParams) -> FootCandidat
     )
 
 
+def _split_pair(img: _Image, unit: list[int], params: FootParams) -> list[FootCandidate]:
+    """The two feet of a component wider across the walking direction than one shoe
+    (``split_width_m``): its pixels split at Otsu's threshold of their lateral positions, both
+    halves feet whose centroids lie side by side, at least :data:`MIN_PAIR_APART_M` apart
+    across and less than 0.75 of that along the walking direction, each longer along the walk
+    than across (within 45°: a shoe turned across the camera's view splits into a front and a
+    back half, which lie along it or across the walk); else []."""
+    x0, y0, _, _, sub = _unit_box(img, unit)
+    vv, uu, _, P = _points(img, x0, y0, sub)
+    if len(P) < 2 * params.min_pixels:
+        return []
+    across = img.plane.project(P) @ img.side
+    if not 4.0 * float(np.std(across)) > params.split_width_m:  # as _candidate's width
+        return []
+    upper = otsu_split(across, *np.percentile(across, [5.0, 95.0]))
+    feet = []
+    for half in (upper, ~upper):
+        keep = np.zeros_like(sub)
+        keep[vv[half], uu[half]] = True
+        cand = _candidate(img, unit, params, keep)
+        if cand is None or abs(float(cand.axis_C @ img.fwd)) < MIN_AXIS_COS:
+            return []  # not a foot, or one lying across the walk: half of a turned shoe
+        feet.append(cand)
+    step = feet[0].centroid_C - feet[1].centroid_C
+    side, ahead = abs(float(step @ img.side)), abs(float(step @ img.fwd))
+    if side < MIN_PAIR_APART_M or ahead > 0.75 * side:
+        return []
+    return sorted(feet, key=lambda c: -c.n_pixels)
+
+
 def detect_foot_candidates(
     depth_m: np.ndarray, K: np.ndarray, plane: FloorPlane, params: FootParams | None = None
 ) -> list[FootCandidate]:
@@ -275,14 +372,6 @@ def detect_foot_candidates(
     ``plane`` the frame's floor (:func:`gaitnet.geometry.floor_plane.fit_floor`).
     """
     params = params or FootParams()
-    if not 0.0 <= params.top_height_fraction < 1.0:
-        raise ValueError(
-            f"top_height_fraction must be in [0, 1), got {params.top_height_fraction!r}"
-        )
-    if params.point_method not in ("toe", "centroid", "ray"):
-        raise ValueError(
-            f"point_method must be 'toe', 'centroid' or 'ray', got {params.point_method!r}"
-        )
     K = np.asarray(K, dtype=np.float64)
     s = int(params.stride)
     d = np.asarray(depth_m, dtype=np.float32)
@@ -323,6 +412,11 @@ def detect_foot_candidates(
         if -neg_px < params.min_pixels:
             break
         cand = _candidate(img, unit, params)
+        if params.split_width_m > 0:
+            pair = _split_pair(img, unit, params)
+            if pair:
+                out.extend(pair[: params.max_candidates - len(out)])
+                continue
         if cand is not None:
             out.append(cand)
         elif len(unit) > 1:

@@ -158,7 +158,7 @@ class Stance:
         return len(self.obs)
 
 
-@dataclass
+@dataclass(eq=False)  # a track is itself: lists of tracks are searched by identity
 class _Track:
     obs: list[tuple[float, np.ndarray]]
     stance: Stance | None = None
