@@ -382,3 +382,44 @@ def test_frames_after_the_first_are_sided_with_their_midline(
         np.testing.assert_allclose(
             [forwards[i] for i in indices[8:]], [forward] * (len(indices) - 8)
         )
+
+
+def test_a_camera_too_high_for_a_waist_warns_and_the_height_key_silences_it(
+    tiny_sim_session: Path, caplog
+) -> None:
+    """The body height from the standing camera's height is clipped to HEIGHT_RANGE_M; a
+    camera that stands too high for a waist (worn on the chest) gives a warning naming
+    ``pipeline.subject_height_m``, and given that key the skeleton is the given height."""
+    import gaitnet.pipeline.infer as infer
+    from gaitnet.config import load_config
+    from gaitnet.motion.onnx_runtime import OnnxPredictor
+    from gaitnet.pipeline.foot_points import FrameFeet
+
+    class NoSegmenter:
+        arch, input_scale, path = "rgb", 0.5, Path("none")
+
+    def unseen(frame, *args, **kwargs) -> FrameFeet:
+        return FrameFeet(np.full((2, 3), np.nan), np.zeros(frame.depth_m.shape, np.uint8), 0)
+
+    cfg = load_config(InferConfig, None, ["vio.smoother.enabled=false"])
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(infer, "measure_feet", unseen)
+        obs = infer.observe(open_session(tiny_sim_session), cfg, segmenter=NoSegmenter())  # type: ignore[arg-type]
+    predictor = OnnxPredictor(infer.default_predictor_path())
+    assert obs.vio.T_WfromC_smoothed is None  # the smoother is off: the filter's poses
+    T = obs.vio.T_WfromC_filter.copy()
+    T[:, 2, 3] += 0.6  # the camera 0.6 m higher: a waist at 1.6 m or more
+    high = replace(obs, vio=replace(obs.vio, T_WfromC_filter=T))
+    for keys, warned, height in (
+        ([], True, infer.HEIGHT_RANGE_M[1]),
+        (["pipeline.subject_height_m=1.75"], False, 1.75),
+    ):
+        caplog.clear()
+        with caplog.at_level("WARNING", logger="gaitnet.pipeline.infer"):
+            result = infer.reconstruct(high, load_config(InferConfig, None, keys), predictor)
+        assert ("pipeline.subject_height_m" in caplog.text) == warned
+        assert result.subject_height_m == pytest.approx(height)
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="gaitnet.pipeline.infer"):
+        infer.reconstruct(obs, cfg, predictor)
+    assert "pipeline.subject_height_m" not in caplog.text
