@@ -295,3 +295,55 @@ def test_tag_gate_refuses_a_pose_metres_off(
     k = int(np.searchsorted(gated.session_index, 10))
     shift = ungated.T_WfromC_filter[k, 0, 3] - gated.T_WfromC_filter[k, 0, 3]
     assert shift > 1.0
+
+
+def test_a_sheet_far_from_the_prediction_is_searched_and_given_to_the_smoother(
+    walk: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A sheet that the prediction does not put in view (the odometry drifted) is searched in
+    the whole frame every ``filter.full_search_every``-th frame once the camera is predicted
+    near it; its pose, 0.3 m from the prediction and refused by the tag gate of a confident
+    filter, goes to the smoother when ``filter.odometry_scale_std`` × the distance walked
+    covers it, which moves the smoothed end towards it and leaves the filter as it was;
+    without the search it is never found, without the drift it is refused."""
+    import gaitnet.vio.apriltags as apriltags
+    from gaitnet.io.trajectory import read_tum
+    from gaitnet.vio.apriltags import TagObservation
+
+    source = open_session(walk)
+    boards = source.calibration.apriltag_boards
+    assert len(boards) == 2
+    t_true, T_true = read_tum(walk / "groundtruth" / "camera_frames.tum")
+    last = len(source) - 30
+    searched: list[int] = []
+    empty = np.zeros(0)
+    cov6 = np.diag([1e-6] * 3 + [1e-6] * 3)
+
+    def decoded(frame, calib, params, T_WfromC_guess=None):
+        T = T_true[int(np.argmin(np.abs(t_true - frame.t_ns * 1e-9)))].copy()
+        if frame.index == 0:  # the start sheet initialises the filter
+            return TagObservation(boards[0].name, T, cov6, 35, 0.2, 0.25, empty, empty, empty)
+        if T_WfromC_guess is not None or frame.index < last:
+            return None  # the prediction's region shows nothing
+        searched.append(frame.index)
+        T[0, 3] += 0.3  # where the sheet says the camera is: 0.3 m beyond the odometry's
+        return TagObservation(boards[1].name, T, cov6, 20, 0.2, 0.25, empty, empty, empty)
+
+    monkeypatch.setattr(apriltags, "detect_board_pose", decoded)
+
+    def run(*keys: str):
+        searched.clear()
+        cfg = load_config(VioConfig, None, ["filter.odometry_scale_std=0.5", *keys])
+        return run_vio(source, cfg)
+
+    taken = run()
+    assert len(searched) >= 5 and all(k % 3 == 0 for k in searched)  # every 3rd frame
+    assert taken.used["tag_smoother_only"] == len(searched) and taken.used["tag"] == 0
+    never = run("filter.full_search_every=0")
+    assert not searched and never.used["tag_smoother_only"] == 0
+    refused = run("filter.odometry_scale_std=0")
+    assert refused.used["tag_smoother_only"] == 0
+    assert refused.skipped["tag"]["outside the chi2 gate"] == len(searched) > 0
+    moved = taken.T_WfromC[-1, 0, 3] - never.T_WfromC[-1, 0, 3]
+    assert 0.1 < moved < 0.35  # the smoother follows the sheet, weighed against the odometry
+    np.testing.assert_allclose(taken.T_WfromC_filter, never.T_WfromC_filter)  # filter untouched

@@ -89,6 +89,22 @@ def _reason(up: covariance.UpdateResult) -> str:
     return _without_numbers(up.reason) or "rejected"
 
 
+def _within_drift(m: Measurement, state: FilterState, drift_m: float, probability: float) -> bool:
+    """Whether the tag measurement ``m`` (position residual, ``H = I`` on ``pos``) passes the
+    χ² gate once the odometry's possible drift ``drift_m`` (standard deviation, horizontal) is
+    added to its covariance (``filter.odometry_scale_std``); False without a drift, a gate, or
+    for a measurement that is not the position-only one."""
+    if drift_m <= 0 or not probability or set(m.H) != {"pos"}:
+        return False
+    S = state.P[3:6, 3:6] + m.R + np.diag([drift_m**2, drift_m**2, 0.0])
+    r = np.asarray(m.residual, dtype=np.float64)
+    try:
+        chi2 = float(r @ np.linalg.solve(S, r))
+    except np.linalg.LinAlgError:
+        return False
+    return np.isfinite(chi2) and chi2 <= covariance.chi2_gate(m.dim, probability)
+
+
 def _freeze(state: FilterState, lm_id: int, lm: _Landmark) -> None:
     """Copy a landmark's estimate and standard deviations out of the state."""
     sl = state.index(("lm", lm_id))
@@ -166,6 +182,8 @@ def run_vio(
     processed: list[int] = []
     prev: Frame | None = None
     tags_initialised = init.method == "apriltag"
+    boards_seen: set[str] = {init.board} if init.board else set()
+    p_last_tag = state.imu.p_IinW.copy()  # where the odometry's drift starts to count
     clock["initialise"] += time.thread_time() - tic
 
     for frame in _frames(source, progress):
@@ -215,6 +233,18 @@ def run_vio(
             tic = time.thread_time()
             T_WfromC_guess = _T_WfromI(state) @ T_IfromC
             obs = detect_board_pose(frame, calib, cfg.tags, T_WfromC_guess)
+            travelled = float(np.linalg.norm((state.imu.p_IinW - p_last_tag)[:2]))
+            drift_m = cfg.filter.odometry_scale_std * travelled
+            every = cfg.filter.full_search_every
+            if obs is None and every and k % every == 0:
+                near = [
+                    b for b in calib.apriltag_boards
+                    if b.name not in boards_seen
+                    and np.linalg.norm(b.T_WfromBoard[:2, 3] - T_WfromC_guess[:2, 3])
+                    < 1.0 + drift_m
+                ]  # fmt: skip
+                if near:  # a sheet is near but not where the prediction puts it: drift
+                    obs = detect_board_pose(frame, calib, cfg.tags, None)
             if obs is not None:
                 cov_I = imu_pose_from_camera(obs.T_WfromC, obs.cov6, T_CfromI)[1]
                 eps2 = cfg.filter.end_sheet_std_m**2 if obs.board != init.board else 0.0
@@ -231,6 +261,13 @@ def run_vio(
                 if up.accepted:
                     result_used["tag"] += 1
                     tags_initialised = True
+                    boards_seen.add(obs.board)
+                    p_last_tag = state.imu.p_IinW.copy()
+                    recorder.add_tag(
+                        obs.T_WfromC, cov_I, end_sheet_eps2=eps2, use_attitude=use_attitude
+                    )
+                elif _within_drift(m, state, drift_m, cfg.filter.tag_gate_probability):
+                    result_used["tag_smoother_only"] += 1  # the filter still misses it
                     recorder.add_tag(
                         obs.T_WfromC, cov_I, end_sheet_eps2=eps2, use_attitude=use_attitude
                     )
