@@ -342,7 +342,7 @@ def test_frames_after_the_first_are_sided_with_their_midline(
     import gaitnet.pipeline.infer as infer
     from gaitnet.config import load_config
     from gaitnet.pipeline.foot_points import FrameFeet
-    from gaitnet.segmentation.postprocess import horizontal_forward
+    from gaitnet.segmentation.body_axes import horizontal_forward
 
     class NoSegmenter:
         arch, input_scale, path = "rgb", 0.5, Path("none")

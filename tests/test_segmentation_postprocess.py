@@ -11,6 +11,7 @@ import pytest
 
 from gaitnet.config import load_config
 from gaitnet.errors import InputError
+from gaitnet.segmentation.body_axes import horizontal_forward, left_axis
 from gaitnet.segmentation.midline import (
     MIN_FORWARD_FRAMES,
     MIN_PAIRS,
@@ -20,9 +21,7 @@ from gaitnet.segmentation.midline import (
 from gaitnet.segmentation.postprocess import (
     FootKeypointParams,
     foot_keypoints,
-    horizontal_forward,
     kept_feet_labels,
-    left_axis,
 )
 from gaitnet.sim.config import SimConfig
 from gaitnet.sim.dataset import simulate_frame

@@ -31,7 +31,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from gaitnet.segmentation.postprocess import FootDetection, FootKeypointParams, horizontal_forward
+from gaitnet.segmentation.body_axes import horizontal_forward
+from gaitnet.segmentation.postprocess import FootDetection, FootKeypointParams
 
 __all__ = ["MIN_FORWARD_FRAMES", "MIN_PAIRS", "MidlineEstimate", "pair_midpoint"]
 

@@ -73,6 +73,7 @@ from gaitnet.checks import check_int_range, check_range
 from gaitnet.errors import InputError
 from gaitnet.geometry.floor_plane import FloorPlane, height_map
 from gaitnet.geometry.two_groups import otsu_split
+from gaitnet.segmentation.body_axes import left_axis
 from gaitnet.segmentation.hha import HhaParams, find_floor
 
 log = logging.getLogger(__name__)
@@ -226,27 +227,6 @@ def _check(labels, depth_m, K) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def _ray(K: np.ndarray, u: float, v: float) -> np.ndarray:
     return np.array([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], 1.0])
-
-
-def horizontal_forward(up_C: np.ndarray, forward_C: np.ndarray | None = None) -> np.ndarray:
-    """``forward_C`` (default: the optical axis) made horizontal (perpendicular to ``up_C``) and
-    unit, in the camera frame; the image's up where that is nearly vertical (a camera looking
-    straight down)."""
-    up = up_C / np.linalg.norm(up_C)
-    forward = np.array([0.0, 0.0, 1.0]) if forward_C is None else np.asarray(forward_C, float)
-    forward = forward - (forward @ up) * up
-    if np.linalg.norm(forward) < 0.05:  # looking straight down: image up is forward
-        forward = np.array([0.0, -1.0, 0.0]) - (-up[1]) * up
-    return forward / np.linalg.norm(forward)
-
-
-def left_axis(up_C: np.ndarray | None, forward_C: np.ndarray | None = None) -> np.ndarray:
-    """The body's left in the camera frame: ``up × forward`` (module docstring); ``forward_C``
-    the body's forward in the camera frame (``forward_in_camera``), else the optical axis."""
-    if up_C is None:
-        return np.array([-1.0, 0.0, 0.0])
-    up = up_C / np.linalg.norm(up_C)
-    return np.cross(up, horizontal_forward(up, forward_C))
 
 
 def _keypoint_pixels(mask: np.ndarray, p: FootKeypointParams) -> dict[str, tuple[float, float]]:
