@@ -141,6 +141,14 @@ def test_a_shoe_cut_by_a_depth_hole_is_one_candidate_at_its_centre():
     assert _to_world(T, cut[0].p_FinC)[0] < true[0] - 0.05
 
 
+def _assert_right_and_left(cands, T, right, left, tol: float = 0.01) -> None:
+    """Two candidates whose world foot points are ``right`` and ``left`` (x, y) within ``tol``."""
+    assert len(cands) == 2
+    pts = sorted((_to_world(T, c.p_FinC)[:2] for c in cands), key=lambda p: p[1])
+    for p, true in zip(pts, (right, left), strict=True):
+        assert np.linalg.norm(p - true) < tol
+
+
 def test_bridging_does_not_join_two_feet():
     # two standing shoes 5 cm apart with the floor between them invalid (a shadow): bridged,
     # the pair is too wide for one foot and each shoe stays a candidate
@@ -155,11 +163,7 @@ def test_bridging_does_not_join_two_feet():
     gap = (np.abs(p_W[..., 1]) < 0.03) & (np.abs(p_W[..., 0] - 0.8) < 0.1) & (depth == floor)
     depth[gap] = 0.0
     params = FootParams(shoe_length_m=0.26, toe_margin_m=0.0)
-    cands = detect_foot_candidates(depth, K, _plane(T), params)
-    assert len(cands) == 2
-    pts = sorted((_to_world(T, c.p_FinC)[:2] for c in cands), key=lambda p: p[1])
-    for p, true in zip(pts, (right, left), strict=True):
-        assert np.linalg.norm(p - true) < 0.01
+    _assert_right_and_left(detect_foot_candidates(depth, K, _plane(T), params), T, right, left)
     # without the width limit and the split of a pair the bridged pair is one "foot" between
     # the two
     unlimited = replace(params, max_width_m=1.0, split_width_m=0.0)
@@ -178,10 +182,7 @@ def test_shoes_touching_side_by_side_are_two_feet(toe_out: float) -> None:
     depth = _render(T, [_shoe(*left), _shoe(*right)])
     params = FootParams(shoe_length_m=0.26, toe_margin_m=0.0)
     cands = detect_foot_candidates(depth, K, _plane(T), params)
-    assert len(cands) == 2
-    pts = sorted((_to_world(T, c.p_FinC)[:2] for c in cands), key=lambda p: p[1])
-    for p, true in zip(pts, (right, left), strict=True):
-        assert np.linalg.norm(p - true) < 0.015
+    _assert_right_and_left(cands, T, right, left, tol=0.015)
     assert detect_foot_candidates(depth, K, _plane(T), replace(params, split_width_m=0.0)) == []
 
 
