@@ -9,7 +9,11 @@ template points, as the arrays ``SWING_PROGRESS`` and ``SWING_LIFT`` of
 the gait cycle; then the line ``span = a + b · cycle`` through the spans that lay the committed
 template best over each swing at 0.6–1.7 m/s (``SWING_SPAN_OFFSET_S``,
 ``SWING_SPAN_PER_CYCLE``: the defaults of ``pipeline.swing_span_offset_s`` and
-``swing_span_per_cycle``). The committed values are this script's output with the defaults.
+``swing_span_per_cycle``), and the line ``span = c + d · (FF' − FF_c)`` through the same spans,
+``FF_c`` the other foot's foot flat between (``SWING_SPAN_CONTRALATERAL_OFFSET_S``,
+``SWING_SPAN_PER_CONTRALATERAL``: the defaults of ``pipeline.swing_span_contralateral_offset_s``
+and ``swing_span_per_contralateral``). The committed values are this script's output with the
+defaults.
 """
 
 from __future__ import annotations
@@ -48,6 +52,13 @@ def main(argv: list[str] | None = None) -> int:
         f"SWING_SPAN_PER_CYCLE = {span['per_cycle']:.3f} "
         f"(residual {span['residual_s']:.3f} s; a share of the cycle alone: "
         f"{span['proportional_residual_s']:.3f} s)"
+    )
+    print(
+        f"span from the other foot's foot flat over {int(span['contralateral_swings'])} swings: "
+        f"SWING_SPAN_CONTRALATERAL_OFFSET_S = {span['contralateral_offset_s']:.3f}, "
+        f"SWING_SPAN_PER_CONTRALATERAL = {span['per_contralateral']:.3f} "
+        f"(residual {span['contralateral_residual_s']:.3f} s; the cycle's line on the same "
+        f"swings: {span['cycle_residual_same_s']:.3f} s)"
     )
     return 0
 

@@ -144,10 +144,13 @@ def test_gap_fill_key_acts(tiny_sim_session: Path, monkeypatch) -> None:
     half = k[: len(k) // 2]
     marker = np.array([0.3, -0.2, 0.1])
 
-    given: list[tuple[float, float, float]] = []
+    given: list[tuple[float, ...]] = []
 
-    def fake_swing(t_s, measured, stance_feet, height, span_offset_s, span_per_cycle):
-        given.append((height, span_offset_s, span_per_cycle))
+    def fake_swing(
+        t_s, measured, stance_feet, height, span_offset_s, span_per_cycle, contra_offset_s,
+        per_contra,
+    ):  # fmt: skip
+        given.append((height, span_offset_s, span_per_cycle, contra_offset_s, per_contra))
         out = np.full(np.shape(measured), np.nan)
         out[half, 1] = marker
         return out
@@ -159,9 +162,11 @@ def test_gap_fill_key_acts(tiny_sim_session: Path, monkeypatch) -> None:
         "pipeline.swing_span_offset_s=0.2",
         "pipeline.swing_span_per_cycle=0.6",
         "pipeline.subject_height_m=1.8",
+        "pipeline.swing_span_contralateral_offset_s=0.1",
+        "pipeline.swing_span_per_contralateral=1.3",
     ]
     infer.reconstruct(obs, load_config(InferConfig, None, keys), predictor)
-    assert given == [(1.8, 0.2, 0.6)]  # the keys reach the fill
+    assert given == [(1.8, 0.2, 0.6, 0.1, 1.3)]  # the keys reach the fill
     assert len(calls) == 2
     second = np.array([m.foot_W for m in calls[1]])
     np.testing.assert_array_equal(second[half, 1], np.broadcast_to(marker, (len(half), 3)))

@@ -9,7 +9,9 @@ import pytest
 from gaitnet.pipeline.swing_fill import (
     SWING_LIFT,
     SWING_PROGRESS,
+    SWING_SPAN_CONTRALATERAL_OFFSET_S,
     SWING_SPAN_OFFSET_S,
+    SWING_SPAN_PER_CONTRALATERAL,
     SWING_SPAN_PER_CYCLE,
     SWING_TAU,
     swing_fill,
@@ -86,6 +88,56 @@ def test_heel_off_from_the_cycle_when_the_foot_is_seen_resting_late() -> None:
         np.interp((t[k] - (1.6 - 0.96)) / 0.96, SWING_TAU, SWING_PROGRESS),
         atol=1e-12,
     )
+
+
+def test_the_other_foots_landing_times_the_swing() -> None:
+    # left rests from 0, 1.2 and 2.4 s (cycle 1.2 s); the second pair's swing is seen from
+    # 1.4 s only; the right foot lands at 1.85 s, 0.55 s before the left's foot flat: the span
+    # is c + d · 0.55 s, not the cycle's line
+    t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 1.4, 1.2), (2.4, 3.0, 2.4)], n=110)
+    right = [_rest("right", 1.85, 2.6, 1.8)]
+    out = swing_fill(t, measured, feet + right, H)
+    span = SWING_SPAN_CONTRALATERAL_OFFSET_S + SWING_SPAN_PER_CONTRALATERAL * 0.55
+    assert abs(span - _span(1.2)) > 0.05  # the two lines differ here
+    start = 2.4 - span
+    k = np.flatnonzero((t > start) & (t < 2.4))
+    expected = 1.2 + np.interp((t[k] - start) / span, SWING_TAU, SWING_PROGRESS) * 1.2
+    np.testing.assert_allclose(out[k, 0, 0], expected, atol=1e-12)
+    # per_contralateral 0: the cycle's line, as without the right foot
+    off = swing_fill(t, measured, feet + right, H, span_per_contralateral=0.0)
+    np.testing.assert_array_equal(off, swing_fill(t, measured, feet, H))
+    assert np.abs(off[k, 0, 0] - out[k, 0, 0]).max() > 0.01
+    # the offset acts
+    later = swing_fill(t, measured, feet + right, H, span_contralateral_offset_s=0.0)
+    assert (later[k, 0, 0] <= out[k, 0, 0] + 1e-12).all()
+    assert (later[k, 0, 0] < out[k, 0, 0] - 1e-6).any()
+
+
+@pytest.mark.parametrize(
+    "right_landings",
+    [
+        [1.25],  # 1.15 s before the foot flat: beyond 0.7 of the cycle
+        [2.35],  # 0.05 s before it: below 0.3 of the cycle
+        [1.6, 2.0],  # two landings of the other foot (a shuffle), 0.3 m apart
+    ],
+)
+def test_the_cycles_line_where_the_other_foot_does_not_time_the_swing(
+    right_landings: list[float],
+) -> None:
+    t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 1.4, 1.2), (2.4, 3.0, 2.4)], n=110)
+    right = [_rest("right", t0, t0 + 0.1, t0) for t0 in right_landings]
+    np.testing.assert_array_equal(
+        swing_fill(t, measured, feet + right, H), swing_fill(t, measured, feet, H)
+    )
+
+
+def test_a_foots_first_pair_keeps_the_cycles_line() -> None:
+    # the step out of standing: the other foot's landing between does not time it
+    t, measured, feet = _walk([(0.0, 0.2, 0.0), (1.2, 2.0, 1.2)])
+    right = [_rest("right", 0.65, 1.4, 0.6)]
+    out = swing_fill(t, measured, feet + right, H)
+    assert np.isfinite(out[:, 0, 0]).sum() > 10
+    np.testing.assert_array_equal(out, swing_fill(t, measured, feet, H))
 
 
 def test_the_span_is_a_smaller_share_of_a_longer_cycle() -> None:
@@ -239,3 +291,29 @@ def test_committed_span_line_is_the_gait_generators() -> None:
         span = fresh["offset_s"] + fresh["per_cycle"] * cycle
         assert abs(span - _span(cycle)) < 1 / 30
     assert fresh["residual_s"] < fresh["proportional_residual_s"]
+    # and the line from the other foot's foot flat, which times the swings more closely
+    assert fresh["contralateral_swings"] > 0.9 * fresh["swings"]
+    for to_landing in (0.5, 0.9):
+        span = fresh["contralateral_offset_s"] + fresh["per_contralateral"] * to_landing
+        committed = SWING_SPAN_CONTRALATERAL_OFFSET_S + SWING_SPAN_PER_CONTRALATERAL * to_landing
+        assert abs(span - committed) < 1 / 30
+    assert fresh["contralateral_residual_s"] < 0.9 * fresh["cycle_residual_same_s"]
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "message"),
+    [
+        ("swing_span_per_contralateral", "3", r"swing_span_per_contralateral must be within"),
+        ("swing_span_per_contralateral", "-1", r"swing_span_per_contralateral must be within"),
+        ("swing_span_contralateral_offset_s", "0.6", r"contralateral_offset_s must be within"),
+    ],
+)
+def test_contralateral_span_keys_are_checked(key: str, value: str, message: str) -> None:
+    from gaitnet.config import load_config
+    from gaitnet.errors import ConfigError
+    from gaitnet.pipeline.config import InferConfig
+
+    with pytest.raises(ConfigError, match=message):
+        load_config(InferConfig, None, [f"pipeline.{key}={value}"])
+    off = load_config(InferConfig, None, ["pipeline.swing_span_per_contralateral=0"])
+    assert off.pipeline.swing_span_per_contralateral == 0

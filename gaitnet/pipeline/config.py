@@ -16,7 +16,12 @@ from typing import ClassVar, Literal
 
 from gaitnet.checks import check_int_range, check_range
 from gaitnet.pipeline.pose_types import PoseCorrectionParams
-from gaitnet.pipeline.swing_fill import SWING_SPAN_OFFSET_S, SWING_SPAN_PER_CYCLE
+from gaitnet.pipeline.swing_fill import (
+    SWING_SPAN_CONTRALATERAL_OFFSET_S,
+    SWING_SPAN_OFFSET_S,
+    SWING_SPAN_PER_CONTRALATERAL,
+    SWING_SPAN_PER_CYCLE,
+)
 from gaitnet.segmentation.edge_refine import EdgeRefineParams
 from gaitnet.segmentation.hha import HhaParams
 from gaitnet.segmentation.postprocess import FootKeypointParams
@@ -126,6 +131,14 @@ class PipelineParams:
     1.8 s one)."""
     swing_span_per_cycle: float = SWING_SPAN_PER_CYCLE
     """See ``swing_span_offset_s``."""
+    swing_span_contralateral_offset_s: float = SWING_SPAN_CONTRALATERAL_OFFSET_S
+    """For ``gap_fill: swing``, where the other foot has one stance landmark between the
+    swing's two rests, first seen ``C`` seconds before the next foot flat (0.3–0.7 of the
+    cycle): the span is ``swing_span_contralateral_offset_s + swing_span_per_contralateral · C``
+    instead (the foot leaves the floor as the double support the other foot's landing begins
+    ends; the gait generator's swings, ``data/derive_swing_template.py``)."""
+    swing_span_per_contralateral: float = SWING_SPAN_PER_CONTRALATERAL
+    """See ``swing_span_contralateral_offset_s``; 0: every swing's span from its cycle."""
     marker_offset_m: tuple[float, float, float] = (0.0, -0.011, 0.079)
     """The reported foot point (``feet.csv``, the foot trajectories): the shoe marker over the
     instep, in the ankle frame (SMPL axes: x left, y up, z forward; mirrored for the right
@@ -144,6 +157,15 @@ class PipelineParams:
             )
         check_range("pipeline.swing_span_offset_s", self.swing_span_offset_s, 0.0, 0.5, " s")
         check_range("pipeline.swing_span_per_cycle", self.swing_span_per_cycle, 0.3, 0.95)
+        check_range(
+            "pipeline.swing_span_contralateral_offset_s",
+            self.swing_span_contralateral_offset_s, 0.0, 0.5, " s",
+        )  # fmt: skip
+        if self.swing_span_per_contralateral != 0:
+            check_range(
+                "pipeline.swing_span_per_contralateral",
+                self.swing_span_per_contralateral, 0.5, 2.5, " (or 0: off)",
+            )  # fmt: skip
         if self.subject_height_m != 0:
             check_range("pipeline.subject_height_m", self.subject_height_m, 0.8, 2.3, " m")
         check_range("pipeline.camera_height_fraction", self.camera_height_fraction, 0.3, 0.8)

@@ -399,6 +399,8 @@ def reconstruct(
             swing = swing_fill(
                 vio.t_s, measured, vio.stance_feet, height,
                 cfg.pipeline.swing_span_offset_s, cfg.pipeline.swing_span_per_cycle,
+                cfg.pipeline.swing_span_contralateral_offset_s,
+                cfg.pipeline.swing_span_per_contralateral,
             )  # fmt: skip
             filled = np.where(np.isnan(swing), filled, swing)
         use = ~np.isnan(filled[:, :, 0])

@@ -19,7 +19,11 @@ of one foot): :func:`swing_spans` fits, per swing, the span ``s`` for which the 
 over ``[FF' − s, FF']`` best matches the marker's progress from ``FF`` to ``FF'`` (least
 squares), and :func:`derive_swing_span` fits ``s = a + b T`` over walks at all the
 generator's speeds (slow walking rolls longer over the forefoot before the swing, so the span
-is a smaller share of a long cycle than of a short one).
+is a smaller share of a long cycle than of a short one). It also fits ``s = c + d C`` with
+``C = FF' − FF_c``, ``FF_c`` the other foot's foot flat between ``FF`` and ``FF'``: the foot
+leaves the floor at the end of the double support that the other foot's landing begins, so
+that interval times each swing more closely than its cycle does (residual 22 against 28 ms
+over the generator's swings).
 """
 
 from __future__ import annotations
@@ -107,14 +111,24 @@ def derive_swing_template(
     }
 
 
+def _other_foot_flat(walk: Walk, foot: int, ff0: float, ff1: float) -> float:
+    """The other foot's foot flat between ``ff0`` and ``ff1`` when there is exactly one, else
+    NaN."""
+    other = walk.events[SIDES[1 - foot]].ff_s
+    inside = other[np.isfinite(other) & (other > ff0) & (other < ff1)]
+    return float(inside[0]) if len(inside) == 1 else float("nan")
+
+
 def swing_spans(
     walk: Walk, tau: np.ndarray, progress: np.ndarray, samples: int = 100
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(cycles, spans)`` (m,) of every swing of ``walk``: the cycle ``FF' − FF`` and the span
-    ``s`` in ``[0.3, 1] · cycle`` minimising ``Σ (ρ̂(τ_k) − ρ(t_k))²`` over ``samples`` times
-    ``t_k`` from ``FF`` to ``FF'``, with ``ρ̂`` the template ``progress`` at ``tau`` and
-    ``τ_k = clip((t_k − FF' + s) / s, 0, 1)`` (module docstring)."""
-    cycles, spans = [], []
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(cycles, spans, contralateral)`` (m,) of every swing of ``walk``: the cycle
+    ``FF' − FF``, the span ``s`` in ``[0.3, 1] · cycle`` minimising ``Σ (ρ̂(τ_k) − ρ(t_k))²``
+    over ``samples`` times ``t_k`` from ``FF`` to ``FF'``, with ``ρ̂`` the template
+    ``progress`` at ``tau`` and ``τ_k = clip((t_k − FF' + s) / s, 0, 1)``, and ``FF' − FF_c``
+    (NaN where the other foot has no single foot flat between ``FF`` and ``FF'``; module
+    docstring)."""
+    cycles, spans, contralateral = [], [], []
     for s, ff0, _, ff1 in _swings(walk):
         t = np.linspace(ff0, ff1, samples)
         rho, _ = _progress(walk, s, t)
@@ -127,7 +141,8 @@ def swing_spans(
         best = minimize_scalar(cost, bounds=(0.3 * cycle, cycle), method="bounded")
         cycles.append(cycle)
         spans.append(float(best.x))
-    return np.array(cycles), np.array(spans)
+        contralateral.append(ff1 - _other_foot_flat(walk, s, ff0, ff1))
+    return np.array(cycles), np.array(spans), np.array(contralateral)
 
 
 def derive_swing_span(
@@ -142,22 +157,36 @@ def derive_swing_span(
     :func:`swing_spans` over ``subjects`` random subjects walking ``walk_length_m`` at each of
     ``speeds_mps`` (the generator's whole range by default): ``offset_s``, ``per_cycle``, the
     residual's standard deviation ``residual_s`` and, for comparison, that of the best line
-    through the origin (``span = c · cycle``) ``proportional_residual_s``, and ``swings``."""
+    through the origin (``span = c · cycle``) ``proportional_residual_s``, and ``swings``; and
+    the line ``span = contralateral_offset_s + per_contralateral · (FF' − FF_c)`` over the
+    swings that have one ``FF_c`` (module docstring), its ``contralateral_residual_s`` and the
+    cycle line's over the same swings, ``cycle_residual_same_s``."""
     rng = np.random.default_rng(seed)
-    cycles, spans = [], []
+    cycles, spans, others = [], [], []
     for speed in speeds_mps:
         cfg = GaitConfig(speed_mps=float(speed), walk_length_m=float(walk_length_m))
         for _ in range(subjects):
-            c, s = swing_spans(generate_walk(sample_subject(rng), cfg, rng), tau, progress)
+            c, s, o = swing_spans(generate_walk(sample_subject(rng), cfg, rng), tau, progress)
             cycles.append(c)
             spans.append(s)
-    cycle, span = np.concatenate(cycles), np.concatenate(spans)
+            others.append(o)
+    cycle, span, other = np.concatenate(cycles), np.concatenate(spans), np.concatenate(others)
     per_cycle, offset = np.polyfit(cycle, span, 1)
     c = float(cycle @ span / (cycle @ cycle))
+    has = np.isfinite(other)
+    per_other, offset_other = np.polyfit(other[has], span[has], 1)
+    cycle_residual = span - offset - per_cycle * cycle
     return {
         "offset_s": float(offset),
         "per_cycle": float(per_cycle),
-        "residual_s": float(np.std(span - offset - per_cycle * cycle)),
+        "residual_s": float(np.std(cycle_residual)),
         "proportional_residual_s": float(np.std(span - c * cycle)),
+        "contralateral_offset_s": float(offset_other),
+        "per_contralateral": float(per_other),
+        "contralateral_residual_s": float(
+            np.std(span[has] - offset_other - per_other * other[has])
+        ),
+        "cycle_residual_same_s": float(np.std(cycle_residual[has])),
         "swings": float(len(cycle)),
+        "contralateral_swings": float(has.sum()),
     }
