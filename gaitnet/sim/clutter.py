@@ -8,7 +8,7 @@ import numpy as np
 
 from gaitnet.sim.floor import Extent
 
-__all__ = ["Clutter", "ClutterBox", "ClutterCylinder", "make_clutter"]
+__all__ = ["Clutter", "ClutterBox", "ClutterCylinder", "distance_to_path", "make_clutter"]
 
 
 @dataclass(frozen=True)
@@ -34,15 +34,32 @@ class ClutterCylinder:
 Clutter = ClutterBox | ClutterCylinder
 
 
+def distance_to_path(point_xy: np.ndarray, path_xy: np.ndarray) -> float:
+    """Distance [m] from a point (2,) to the polyline ``path_xy`` (m, 2), m ≥ 1."""
+    p = np.asarray(point_xy, dtype=np.float64)
+    path = np.asarray(path_xy, dtype=np.float64).reshape(-1, 2)
+    if len(path) == 1:
+        return float(np.linalg.norm(p - path[0]))
+    a, b = path[:-1], path[1:]
+    ab = b - a
+    length2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18)
+    s = np.clip(np.einsum("ij,ij->i", p - a, ab) / length2, 0.0, 1.0)
+    return float(np.min(np.linalg.norm(a + s[:, None] * ab - p, axis=1)))
+
+
 def make_clutter(
     rng: np.random.Generator,
     extent_xy: Extent,
     n: int = 6,
     path_y_m: float = 0.0,
     keep_out_m: float = 0.7,
+    path_xy: np.ndarray | None = None,
 ) -> tuple[Clutter, ...]:
-    """``n`` boxes and cylinders placed inside ``extent_xy`` but ≥ ``keep_out_m`` from the
-    walking path (the line y = ``path_y_m``)."""
+    """``n`` boxes and cylinders placed inside ``extent_xy`` but ≥ ``keep_out_m`` (plus their
+    size) from the walking path: the line y = ``path_y_m`` (the start's direction) and, when
+    given, the polyline ``path_xy`` (m, 2) the walk follows (a turning walk leaves that line; a
+    box on its path would be walked through, and its edges seen as stance feet). A straight
+    walk's path lies on the line, so the polyline only moves clutter off turning walks."""
     (x0, x1), (y0, y1) = extent_xy
     colours = [
         (0.45, 0.05, 0.03),
@@ -62,6 +79,8 @@ def make_clutter(
         if abs(cy - path_y_m) < keep_out_m + size:
             continue
         centre = (float(rng.uniform(x0 + 0.3, x1 - 0.3)), cy)
+        if path_xy is not None and distance_to_path(np.array(centre), path_xy) < keep_out_m + size:
+            continue
         rgb = colours[int(rng.integers(len(colours)))]
         if rng.random() < 0.6:
             dims = (size, size * float(rng.uniform(0.5, 1.5)), float(rng.uniform(0.1, 0.6)))

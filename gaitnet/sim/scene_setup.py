@@ -263,7 +263,11 @@ def build_scene(cfg: SimConfig, rngs: dict[str, np.random.Generator], threads: i
         threads=threads,
     )
     path_y = float(np.mean(walk.sole_centres(np.array([0.0]))[0, :, 1]))
-    clutter = make_clutter(room_rng, extent, cfg.scene.clutter_count, path_y_m=path_y)
+    path_t = np.linspace(0.0, walk.duration_s, max(2, int(np.ceil(walk.duration_s / 0.05)) + 1))
+    path_xy = walk.sole_centres(path_t)[:, :, :2].mean(axis=1)  # midway between the feet
+    clutter = make_clutter(
+        room_rng, extent, cfg.scene.clutter_count, path_y_m=path_y, path_xy=path_xy
+    )
     appearance = sample_appearance(subject, floor, room_rng, cfg.scene.shoe_like_floor_prob)
 
     light_rng = rngs["lighting"]
