@@ -39,7 +39,8 @@ def test_distance_to_path_known_answers() -> None:
     assert distance_to_path(np.array([1.0, 1.0]), path[:1]) == pytest.approx(np.sqrt(2))
     # against a dense sampling of the polyline
     rng = np.random.default_rng(0)
-    dense = np.concatenate([np.linspace(a, b, 2001) for a, b in zip(path, path[1:])])
+    pairs = zip(path[:-1], path[1:], strict=True)
+    dense = np.concatenate([np.linspace(a, b, 2001) for a, b in pairs])
     for p in rng.uniform(-3, 5, (50, 2)):
         brute = np.min(np.linalg.norm(dense - p, axis=1))
         assert distance_to_path(p, path) == pytest.approx(brute, abs=2e-3)
