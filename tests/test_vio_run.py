@@ -347,3 +347,52 @@ def test_a_sheet_far_from_the_prediction_is_searched_and_given_to_the_smoother(
     moved = taken.T_WfromC[-1, 0, 3] - never.T_WfromC[-1, 0, 3]
     assert 0.1 < moved < 0.35  # the smoother follows the sheet, weighed against the odometry
     np.testing.assert_allclose(taken.T_WfromC_filter, never.T_WfromC_filter)  # filter untouched
+
+
+def test_a_sheet_refused_steadily_frame_after_frame_is_taken_after_widening(
+    walk: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A sheet decoded in every one of the last 30 frames, 0.3 m from where a confident filter
+    puts the camera, is refused by the tag gate; after ``filter.tag_recovery_frames`` steady
+    refusals the filter's navigation covariance is widened and the sheet taken, which moves
+    the filter's end by about the offset. Never with 0; never when the refused poses jump
+    (a wrong decode), however often they come."""
+    import gaitnet.vio.apriltags as apriltags
+    from gaitnet.io.trajectory import read_tum
+    from gaitnet.vio.apriltags import TagObservation
+
+    source = open_session(walk)
+    boards = source.calibration.apriltag_boards
+    t_true, T_true = read_tum(walk / "groundtruth" / "camera_frames.tum")
+    last = len(source) - 30
+    empty = np.zeros(0)
+    cov6 = np.diag([1e-6] * 3 + [1e-6] * 3)
+    jumpy = [False]
+
+    def decoded(frame, calib, params, T_WfromC_guess=None):
+        T = T_true[int(np.argmin(np.abs(t_true - frame.t_ns * 1e-9)))].copy()
+        if frame.index == 0:
+            return TagObservation(boards[0].name, T, cov6, 35, 0.2, 0.25, empty, empty, empty)
+        if frame.index < last:
+            return None
+        T[0, 3] += 0.3 if not jumpy[0] or frame.index % 2 else -0.3
+        return TagObservation(boards[1].name, T, cov6, 35, 0.2, 0.25, empty, empty, empty)
+
+    monkeypatch.setattr(apriltags, "detect_board_pose", decoded)
+
+    def run(*keys: str):
+        cfg = load_config(VioConfig, None, ["filter.odometry_scale_std=0", *keys])
+        return run_vio(source, cfg)
+
+    taken = run()
+    assert taken.used["tag_recovered"] == 1
+    assert taken.skipped["tag"]["outside the chi2 gate"] == 4  # the 5th refusal is taken
+    assert taken.used["tag"] == 30 - 4
+    never = run("filter.tag_recovery_frames=0")
+    assert never.used["tag_recovered"] == 0 and never.used["tag"] == 0
+    assert never.skipped["tag"]["outside the chi2 gate"] == 30
+    moved = taken.T_WfromC_filter[-1, 0, 3] - never.T_WfromC_filter[-1, 0, 3]
+    assert 0.2 < moved < 0.35
+    jumpy[0] = True
+    wrong = run()
+    assert wrong.used["tag_recovered"] == 0 and wrong.used["tag"] == 0

@@ -11,6 +11,7 @@ from gaitnet.vio.covariance import (
     check_healthy,
     chi2_gate,
     clone,
+    inflate_to_pass,
     marginalise_landmark,
     propagate,
     update,
@@ -284,3 +285,30 @@ def test_chi2_gate_equals_the_chi2_quantile(dof: int, probability: float) -> Non
     from scipy.stats import chi2
 
     assert chi2_gate(dof, probability) == pytest.approx(chi2.ppf(probability, dof), rel=1e-10)
+
+
+def test_inflate_to_pass_known_answer_and_only_the_navigation_block() -> None:
+    # P_pp = σ² I (uncorrelated), R = ρ² I: rᵀS⁻¹r = |r|² / (f σ² + ρ²), so the target χ² is
+    # reached at f = (|r|² / target − ρ²) / σ²
+    rng = np.random.default_rng(3)
+    state = random_state(rng, n_lm=1, with_clone=True)
+    sigma2, rho2 = 1e-4, 1e-4
+    state.P[3:6, :] = 0.0
+    state.P[:, 3:6] = 0.0
+    state.P[3:6, 3:6] = sigma2 * np.eye(3)
+    r = np.array([0.3, -0.1, 0.2])
+    m = Measurement(r, {"pos": np.eye(3)}, rho2 * np.eye(3), "sheet")
+    target = 0.5 * chi2_gate(3, 0.99999)
+    before = state.P.copy()
+    f = inflate_to_pass(state, m, target)
+    assert f == pytest.approx((r @ r / target - rho2) / sigma2, rel=1e-3)
+    np.testing.assert_allclose(state.P[:9, :9], f * before[:9, :9], rtol=1e-12)
+    np.testing.assert_array_equal(state.P[9:, :], before[9:, :])  # biases, clone, landmark
+    np.testing.assert_array_equal(state.P[:9, 9:], before[:9, 9:])
+    assert np.linalg.eigvalsh(state.P).min() > 0
+    assert update(state, m, gate_chi2=chi2_gate(3, 0.99999)).accepted
+    # a measurement that already passes changes nothing
+    again = state.P.copy()
+    small = Measurement(np.array([1e-4, 0, 0]), {"pos": np.eye(3)}, rho2 * np.eye(3), "in")
+    assert inflate_to_pass(state, small, target) == 1.0
+    np.testing.assert_array_equal(state.P, again)

@@ -79,6 +79,12 @@ class FilterParams:
     (not the filter): on a simulated 30 m walk the filter ended 64 cm short, its position
     standard deviation 10 cm, and the end sheet was neither searched where it was nor taken.
     ``full_search_every``: 0 never searches the whole frame after the first sheet.
+    ``tag_recovery_frames``: a sheet whose position-only pose the gate refuses in this many
+    frames in a row, steadily (``gaitnet.vio.run.RECOVERY_STEP_M``), shows a filter that has
+    drifted beyond its covariance: its navigation covariance is widened until the pose passes,
+    and the pose is taken (``tag_recovered`` in ``summary.json``; 0: never). After a simulated
+    full turn on the spot the filter refused the end sheet for 3.5 s while its camera height
+    sank 27 cm, and the pipeline lost both feet.
     """
 
     use_vo: bool = True
@@ -94,6 +100,7 @@ class FilterParams:
     marginalise_after_s: float = 1.2
     odometry_scale_std: float = 0.05
     full_search_every: int = 3
+    tag_recovery_frames: int = 5
 
     def __post_init__(self) -> None:
         for name in ("vo_gate_probability", "tag_gate_probability", "foot_gate_probability"):
@@ -104,6 +111,7 @@ class FilterParams:
         check_positive("marginalise_after_s", self.marginalise_after_s)
         check_range("odometry_scale_std", self.odometry_scale_std, 0.0, 1.0)
         check_int_range("full_search_every", self.full_search_every, 0)
+        check_int_range("tag_recovery_frames", self.tag_recovery_frames, 0)
         if self.gravity_mps2 != 0.0:
             check_range("gravity_mps2", self.gravity_mps2, 9.7, 9.9)
 

@@ -3,7 +3,8 @@
 After OpenVINS' ``StateHelper``: :func:`propagate` (time update, thesis (3.8)–(3.10)),
 :func:`update` (Kalman update in Joseph form, then error injection and reset), :func:`clone`
 (stochastic cloning of the IMU pose, thesis (3.10)), :func:`augment_landmark` (thesis
-(3.38)–(3.41)), :func:`marginalise_landmark` and :func:`check_healthy`. Every function changes
+(3.38)–(3.41)), :func:`marginalise_landmark`, :func:`inflate_to_pass` (a diverged filter's
+covariance widened to take a trusted measurement) and :func:`check_healthy`. Every function changes
 the state in place. Layout and conventions: :mod:`gaitnet.vio.state`.
 """
 
@@ -110,6 +111,42 @@ def update(state: FilterState, m: Measurement, *, gate_chi2: float | None = None
     state.clone = injected.clone
     state.landmarks = injected.landmarks
     return UpdateResult(True, chi2, dof)
+
+
+NAV_DIM = 9  # dθ, δp, δv: the navigation block of the IMU error state (gaitnet.vio.state)
+
+
+def inflate_to_pass(
+    state: FilterState, m: Measurement, target_chi2: float, max_factor: float = 1e8
+) -> float:
+    """Scale the navigation block of ``P`` (attitude, position, velocity; ``P_nav ← f P_nav``,
+    i.e. ``P + (f − 1) blockdiag(P_nav, 0)``, which keeps ``P`` positive semi-definite) by the
+    smallest factor ``f ≥ 1`` that brings ``m``'s ``rᵀ S⁻¹ r`` to ``target_chi2`` (bisection
+    on ``log f``; ``max_factor`` at most); returns ``f`` (1: nothing changed). For a filter
+    whose covariance no longer covers its error (``gaitnet.vio.run``: a sheet refused frame
+    after frame); the update with ``m`` follows as usual."""
+    r = np.asarray(m.residual, dtype=np.float64)
+    H = stack_jacobian(m, state)
+    nav = np.zeros_like(state.P)
+    nav[:NAV_DIM, :NAV_DIM] = state.P[:NAV_DIM, :NAV_DIM]
+
+    def chi2(f: float) -> float:
+        S = _symmetrise(H @ (state.P + (f - 1.0) * nav) @ H.T + m.R)
+        return float(r @ np.linalg.solve(S, r))
+
+    if not np.all(np.isfinite(r)) or chi2(1.0) <= target_chi2:
+        return 1.0
+    lo, hi = 0.0, float(np.log(max_factor))
+    if chi2(max_factor) > target_chi2:
+        lo = hi
+    for _ in range(60):
+        if hi - lo < 1e-3:
+            break
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if chi2(float(np.exp(mid))) > target_chi2 else (lo, mid)
+    f = float(np.exp(hi))
+    state.P = _symmetrise(state.P + (f - 1.0) * nav)
+    return f
 
 
 def clone(state: FilterState) -> None:

@@ -105,6 +105,24 @@ def _within_drift(m: Measurement, state: FilterState, drift_m: float, probabilit
     return np.isfinite(chi2) and chi2 <= covariance.chi2_gate(m.dim, probability)
 
 
+RECOVERY_STEP_M = 0.03
+"""Largest change of a refused sheet pose's position residual from one refused frame to the
+next for the refusals to count as steady (``filter.tag_recovery_frames``): a drifted filter's
+residual grows by millimetres per frame; a wrong decode jumps."""
+
+
+def _steadily_refused(refused: list[tuple[int, np.ndarray]], n: int) -> bool:
+    """Whether the last ``n`` refused sheet poses ``(frame index, position residual)`` come
+    from ``n`` frames in a row (a frame without a decode between them allowed) and change by at
+    most :data:`RECOVERY_STEP_M` from one to the next."""
+    if n <= 0 or len(refused) < n:
+        return False
+    last = refused[-n:]
+    frames = np.array([k for k, _ in last])
+    steps = np.linalg.norm(np.diff(np.array([r for _, r in last]), axis=0), axis=1)
+    return bool(np.all(np.diff(frames) <= 2) and np.all(steps <= RECOVERY_STEP_M))
+
+
 def _freeze(state: FilterState, lm_id: int, lm: _Landmark) -> None:
     """Copy a landmark's estimate and standard deviations out of the state."""
     sl = state.index(("lm", lm_id))
@@ -184,6 +202,7 @@ def run_vio(
     tags_initialised = init.method == "apriltag"
     boards_seen: set[str] = {init.board} if init.board else set()
     p_last_tag = state.imu.p_IinW.copy()  # where the odometry's drift starts to count
+    refused_tags: list[tuple[int, np.ndarray]] = []  # sheet poses refused since the last taken
     clock["initialise"] += time.thread_time() - tic
 
     for frame in _frames(source, progress):
@@ -258,7 +277,24 @@ def run_vio(
                     use_attitude=use_attitude,
                 )
                 up = gated_update(m, cfg.filter.tag_gate_probability)
+                if not up.accepted and set(m.H) == {"pos"} and np.isfinite(up.chi2):
+                    refused_tags.append((k, np.asarray(m.residual, dtype=np.float64)))
+                    if _steadily_refused(refused_tags, cfg.filter.tag_recovery_frames):
+                        # the filter has drifted beyond its covariance: widen it to take the
+                        # sheet (a sheet seen steadily frame after frame is not a wrong decode)
+                        gate = covariance.chi2_gate(m.dim, cfg.filter.tag_gate_probability)
+                        factor = covariance.inflate_to_pass(state, m, 0.5 * gate)
+                        up = gated_update(m, cfg.filter.tag_gate_probability)
+                        if up.accepted:
+                            result_used["tag_recovered"] += 1
+                            log.info(
+                                "frame %d: sheet '%s' refused %d frames in a row (%.1f cm off): "
+                                "the filter's navigation covariance widened ×%.3g to take it",
+                                k, obs.board, len(refused_tags),
+                                100 * float(np.linalg.norm(m.residual)), factor,
+                            )  # fmt: skip
                 if up.accepted:
+                    refused_tags.clear()
                     result_used["tag"] += 1
                     tags_initialised = True
                     boards_seen.add(obs.board)
