@@ -61,19 +61,25 @@ def start_workers(workers: int | None = None) -> None:
         start_forkserver(worker_context())
 
 
+_STARTED_BY: int | None = None  # the process that started the forkserver (its pid)
+
+
 def start_forkserver(ctx: multiprocessing.context.BaseContext) -> None:
     """Start ``ctx``'s forkserver, if it uses one and none runs, with SIGINT ignored.
 
     The forkserver is in the terminal's process group, so Ctrl-C reaches it too; Python keeps
     a SIGINT ignore inherited from its parent, so it imports the simulator undisturbed and
     exits when the main process does. The main process ignores SIGINT only for the
-    milliseconds the start takes (the main thread only: elsewhere signals cannot be changed).
+    milliseconds the first start takes (the main thread only: elsewhere signals cannot be
+    changed); once it has started one, later calls leave SIGINT alone (a Ctrl-C in that window
+    was lost: ``gaitnet simulate`` calls this again when the frames start).
     """
+    global _STARTED_BY
     if ctx.get_start_method() != "forkserver":
         return
     from multiprocessing import forkserver
 
-    if threading.current_thread() is not threading.main_thread():
+    if os.getpid() == _STARTED_BY or threading.current_thread() is not threading.main_thread():
         forkserver.ensure_running()
         return
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -81,6 +87,7 @@ def start_forkserver(ctx: multiprocessing.context.BaseContext) -> None:
         forkserver.ensure_running()
     finally:
         signal.signal(signal.SIGINT, signal.SIG_DFL if previous is None else previous)
+    _STARTED_BY = os.getpid()
 
 
 @contextmanager
