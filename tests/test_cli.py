@@ -124,6 +124,9 @@ def test_signal_during_simulate_cleans_up(
     import time
 
     config = Path(__file__).parents[1] / "configs" / "sim" / "default.yaml"
+    # a shell's background job ignores SIGINT and its children inherit that; as from a
+    # terminal, the CLI must start with SIGINT handled
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     proc = subprocess.Popen(
         [
             sys.executable,
@@ -140,6 +143,7 @@ def test_signal_during_simulate_cleans_up(
         text=True,
         start_new_session=True,  # its own process group, as in a terminal
     )
+    signal.signal(signal.SIGINT, previous)
     deadline = time.monotonic() + 120
     while not any(p.name.startswith(".") for p in tmp_path.iterdir()):  # staging folder
         assert proc.poll() is None and time.monotonic() < deadline, "never started writing"

@@ -17,6 +17,15 @@ from gaitnet.sim.worker_pool import start_forkserver, worker_context
 def test_a_ctrl_c_while_a_running_forkserver_is_checked_is_not_lost(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
+    # as from a terminal (a shell's background job would start with SIGINT ignored)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        _check_ctrl_c_kept(monkeypatch)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _check_ctrl_c_kept(monkeypatch: pytest.MonkeyPatch) -> None:
     from multiprocessing import forkserver
 
     ctx = worker_context()
