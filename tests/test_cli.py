@@ -103,6 +103,25 @@ def test_simulate_unknown_config_key_one_line(tmp_path: Path) -> None:
     )
 
 
+def _popen_simulate(config: Path, tmp_path: Path) -> subprocess.Popen:
+    return subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "gaitnet.cli",
+            "simulate",
+            "--config",
+            str(config),
+            "--out",
+            str(tmp_path / "sim"),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own process group, as in a terminal
+    )
+
+
 @pytest.mark.parametrize(
     ("signame", "delay_s", "returncode", "last_line"),
     [
@@ -127,23 +146,10 @@ def test_signal_during_simulate_cleans_up(
     # a shell's background job ignores SIGINT and its children inherit that; as from a
     # terminal, the CLI must start with SIGINT handled
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "gaitnet.cli",
-            "simulate",
-            "--config",
-            str(config),
-            "--out",
-            str(tmp_path / "sim"),
-        ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,  # its own process group, as in a terminal
-    )
-    signal.signal(signal.SIGINT, previous)
+    try:
+        proc = _popen_simulate(config, tmp_path)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     deadline = time.monotonic() + 120
     while not any(p.name.startswith(".") for p in tmp_path.iterdir()):  # staging folder
         assert proc.poll() is None and time.monotonic() < deadline, "never started writing"

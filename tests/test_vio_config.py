@@ -27,6 +27,8 @@ def test_the_shipped_default_file_is_the_built_in_default() -> None:
         ("gait.max_stride_time_s=-1", "max_stride_time_s"),
         ("imu.scale=0", "scale"),
         ("filter.bogus=1", "filter.bogus"),
+        ("filter.tag_recovery_frames=1", "tag_recovery_frames"),
+        ("filter.tag_recovery_frames=-2", "tag_recovery_frames"),
     ],
 )
 def test_bad_values_are_one_line_config_errors(override: str, key: str) -> None:

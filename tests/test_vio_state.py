@@ -312,3 +312,15 @@ def test_inflate_to_pass_known_answer_and_only_the_navigation_block() -> None:
     small = Measurement(np.array([1e-4, 0, 0]), {"pos": np.eye(3)}, rho2 * np.eye(3), "in")
     assert inflate_to_pass(state, small, target) == 1.0
     np.testing.assert_array_equal(state.P, again)
+
+
+def test_inflate_to_pass_leaves_P_alone_when_no_factor_reaches_the_target() -> None:
+    rng = np.random.default_rng(4)
+    state = random_state(rng)
+    state.P[3:6, :] = 0.0
+    state.P[:, 3:6] = 0.0
+    state.P[3:6, 3:6] = 1e-12 * np.eye(3)  # a position the filter is sure of
+    m = Measurement(np.array([5.0, 0, 0]), {"pos": np.eye(3)}, 1e-8 * np.eye(3), "far")
+    before = state.P.copy()
+    assert inflate_to_pass(state, m, 1.0, max_factor=10.0) == np.inf
+    np.testing.assert_array_equal(state.P, before)

@@ -160,7 +160,7 @@ def derive_swing_span(
     through the origin (``span = c · cycle``) ``proportional_residual_s``, and ``swings``; and
     the line ``span = contralateral_offset_s + per_contralateral · (FF' − FF_c)`` over the
     swings that have one ``FF_c`` (module docstring), its ``contralateral_residual_s`` and the
-    cycle line's over the same swings, ``cycle_residual_same_s``."""
+    cycle line's over the same swings, ``cycle_residual_same_s`` (NaN without such swings)."""
     rng = np.random.default_rng(seed)
     cycles, spans, others = [], [], []
     for speed in speeds_mps:
@@ -174,7 +174,9 @@ def derive_swing_span(
     per_cycle, offset = np.polyfit(cycle, span, 1)
     c = float(cycle @ span / (cycle @ cycle))
     has = np.isfinite(other)
-    per_other, offset_other = np.polyfit(other[has], span[has], 1)
+    per_other = offset_other = float("nan")  # no swing with one foot flat of the other foot
+    if has.sum() >= 2:
+        per_other, offset_other = np.polyfit(other[has], span[has], 1)
     cycle_residual = span - offset - per_cycle * cycle
     return {
         "offset_s": float(offset),
@@ -184,9 +186,9 @@ def derive_swing_span(
         "contralateral_offset_s": float(offset_other),
         "per_contralateral": float(per_other),
         "contralateral_residual_s": float(
-            np.std(span[has] - offset_other - per_other * other[has])
+            np.std(span[has] - offset_other - per_other * other[has]) if has.any() else np.nan
         ),
-        "cycle_residual_same_s": float(np.std(cycle_residual[has])),
+        "cycle_residual_same_s": float(np.std(cycle_residual[has]) if has.any() else np.nan),
         "swings": float(len(cycle)),
         "contralateral_swings": float(has.sum()),
     }

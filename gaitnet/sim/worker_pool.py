@@ -71,8 +71,9 @@ def start_forkserver(ctx: multiprocessing.context.BaseContext) -> None:
     a SIGINT ignore inherited from its parent, so it imports the simulator undisturbed and
     exits when the main process does. The main process ignores SIGINT only for the
     milliseconds the first start takes (the main thread only: elsewhere signals cannot be
-    changed); once it has started one, later calls leave SIGINT alone (a Ctrl-C in that window
-    was lost: ``gaitnet simulate`` calls this again when the frames start).
+    changed); once it has started (or found) one, later calls leave SIGINT alone, so a Ctrl-C
+    then is not lost (``gaitnet simulate`` calls this again when the frames start). A
+    forkserver that died and is started again by such a later call does not ignore Ctrl-C.
     """
     global _STARTED_BY
     if ctx.get_start_method() != "forkserver":

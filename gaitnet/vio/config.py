@@ -80,9 +80,12 @@ class FilterParams:
     standard deviation 10 cm, and the end sheet was neither searched where it was nor taken.
     ``full_search_every``: 0 never searches the whole frame after the first sheet.
     ``tag_recovery_frames``: a sheet whose position-only pose the gate refuses in this many
-    frames in a row, steadily (``gaitnet.vio.run.RECOVERY_STEP_M``), shows a filter that has
-    drifted beyond its covariance: its navigation covariance is widened until the pose passes,
-    and the pose is taken (``tag_recovered`` in ``summary.json``; 0: never). After a simulated
+    decodes in a row (one frame without a decode between two allowed), steadily
+    (``gaitnet.vio.run.RECOVERY_STEP_M``), shows a filter that has drifted beyond its
+    covariance: its navigation covariance is widened until the pose passes, and the pose is
+    taken (``tag_recovered`` in ``summary.json``; 0: never; else at least 2). Such a sheet goes
+    to the filter, not only to the smoother (``odometry_scale_std``); one found by the
+    whole-frame search alone, every ``full_search_every``-th frame, is not steady. After a simulated
     full turn on the spot the filter refused the end sheet for 3.5 s while its camera height
     sank 27 cm, and the pipeline lost both feet.
     """
@@ -112,6 +115,11 @@ class FilterParams:
         check_range("odometry_scale_std", self.odometry_scale_std, 0.0, 1.0)
         check_int_range("full_search_every", self.full_search_every, 0)
         check_int_range("tag_recovery_frames", self.tag_recovery_frames, 0)
+        if self.tag_recovery_frames == 1:
+            raise ValueError(
+                "tag_recovery_frames must be 0 (never) or at least 2 (one refusal alone may be "
+                "a wrong decode), got 1"
+            )
         if self.gravity_mps2 != 0.0:
             check_range("gravity_mps2", self.gravity_mps2, 9.7, 9.9)
 

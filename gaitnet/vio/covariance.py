@@ -116,32 +116,38 @@ def update(state: FilterState, m: Measurement, *, gate_chi2: float | None = None
 NAV_DIM = 9  # dθ, δp, δv: the navigation block of the IMU error state (gaitnet.vio.state)
 
 
+def mahalanobis2(S: np.ndarray, r: np.ndarray) -> float:
+    """``rᵀ S⁻¹ r`` (NaN when ``S`` is singular): an innovation's χ² for its covariance ``S``."""
+    try:
+        return float(np.asarray(r) @ np.linalg.solve(S, np.asarray(r)))
+    except np.linalg.LinAlgError:
+        return float("nan")
+
+
 def inflate_to_pass(
     state: FilterState, m: Measurement, target_chi2: float, max_factor: float = 1e8
 ) -> float:
     """Scale the navigation block of ``P`` (attitude, position, velocity; ``P_nav ← f P_nav``,
     i.e. ``P + (f − 1) blockdiag(P_nav, 0)``, which keeps ``P`` positive semi-definite) by the
     smallest factor ``f ≥ 1`` that brings ``m``'s ``rᵀ S⁻¹ r`` to ``target_chi2`` (bisection
-    on ``log f``; ``max_factor`` at most); returns ``f`` (1: nothing changed). For a filter
-    whose covariance no longer covers its error (``gaitnet.vio.run``: a sheet refused frame
-    after frame); the update with ``m`` follows as usual."""
+    on ``log f``); returns ``f`` (1: it passes already, nothing changed; ``inf``: not even
+    ``max_factor`` does, nothing changed). For a filter whose covariance no longer covers its
+    error (``gaitnet.vio.run``: a sheet refused frame after frame); the update with ``m``
+    follows as usual."""
     r = np.asarray(m.residual, dtype=np.float64)
     H = stack_jacobian(m, state)
     nav = np.zeros_like(state.P)
     nav[:NAV_DIM, :NAV_DIM] = state.P[:NAV_DIM, :NAV_DIM]
 
     def chi2(f: float) -> float:
-        S = _symmetrise(H @ (state.P + (f - 1.0) * nav) @ H.T + m.R)
-        return float(r @ np.linalg.solve(S, r))
+        return mahalanobis2(_symmetrise(H @ (state.P + (f - 1.0) * nav) @ H.T + m.R), r)
 
     if not np.all(np.isfinite(r)) or chi2(1.0) <= target_chi2:
         return 1.0
+    if not chi2(max_factor) <= target_chi2:  # unreachable (or NaN)
+        return float("inf")
     lo, hi = 0.0, float(np.log(max_factor))
-    if chi2(max_factor) > target_chi2:
-        lo = hi
-    for _ in range(60):
-        if hi - lo < 1e-3:
-            break
+    while hi - lo > 1e-3:
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if chi2(float(np.exp(mid))) > target_chi2 else (lo, mid)
     f = float(np.exp(hi))

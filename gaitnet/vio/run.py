@@ -97,11 +97,7 @@ def _within_drift(m: Measurement, state: FilterState, drift_m: float, probabilit
     if drift_m <= 0 or not probability or set(m.H) != {"pos"}:
         return False
     S = state.P[3:6, 3:6] + m.R + np.diag([drift_m**2, drift_m**2, 0.0])
-    r = np.asarray(m.residual, dtype=np.float64)
-    try:
-        chi2 = float(r @ np.linalg.solve(S, r))
-    except np.linalg.LinAlgError:
-        return False
+    chi2 = covariance.mahalanobis2(S, np.asarray(m.residual, dtype=np.float64))
     return np.isfinite(chi2) and chi2 <= covariance.chi2_gate(m.dim, probability)
 
 
@@ -112,10 +108,10 @@ residual grows by millimetres per frame; a wrong decode jumps."""
 
 
 def _steadily_refused(refused: list[tuple[int, np.ndarray]], n: int) -> bool:
-    """Whether the last ``n`` refused sheet poses ``(frame index, position residual)`` come
-    from ``n`` frames in a row (a frame without a decode between them allowed) and change by at
-    most :data:`RECOVERY_STEP_M` from one to the next."""
-    if n <= 0 or len(refused) < n:
+    """Whether the last ``n`` (≥ 2) refused sheet poses ``(frame index, position residual)``
+    come from ``n`` frames in a row (a frame without a decode between them allowed) and change
+    by at most :data:`RECOVERY_STEP_M` from one to the next."""
+    if n < 2 or len(refused) < n:
         return False
     last = refused[-n:]
     frames = np.array([k for k, _ in last])
@@ -284,13 +280,15 @@ def run_vio(
                         # sheet (a sheet seen steadily frame after frame is not a wrong decode)
                         gate = covariance.chi2_gate(m.dim, cfg.filter.tag_gate_probability)
                         factor = covariance.inflate_to_pass(state, m, 0.5 * gate)
-                        up = gated_update(m, cfg.filter.tag_gate_probability)
+                        if np.isfinite(factor):
+                            up = gated_update(m, cfg.filter.tag_gate_probability)
                         if up.accepted:
                             result_used["tag_recovered"] += 1
                             log.info(
-                                "frame %d: sheet '%s' refused %d frames in a row (%.1f cm off): "
-                                "the filter's navigation covariance widened ×%.3g to take it",
-                                k, obs.board, len(refused_tags),
+                                "frame %d: sheet '%s' refused steadily in its last %d decodes "
+                                "(%.1f cm off): the filter's navigation covariance widened "
+                                "×%.3g to take it",
+                                k, obs.board, cfg.filter.tag_recovery_frames,
                                 100 * float(np.linalg.norm(m.residual)), factor,
                             )  # fmt: skip
                 if up.accepted:
