@@ -81,7 +81,7 @@ class FilterParams:
     ``full_search_every``: 0 never searches the whole frame after the first sheet.
     ``tag_recovery_frames``: a sheet whose position-only pose the gate refuses in this many
     decodes in a row (one frame without a decode between two allowed), steadily
-    (``gaitnet.vio.run.RECOVERY_STEP_M``), shows a filter that has drifted beyond its
+    (``gaitnet.vio.tag_refusals.RECOVERY_STEP_M``), shows a filter that has drifted beyond its
     covariance: its navigation covariance is widened until the pose passes, and the pose is
     taken (``tag_recovered`` in ``summary.json``; 0: never; else at least 2). Such a sheet goes
     to the filter, not only to the smoother (``odometry_scale_std``); one found by the

@@ -57,6 +57,7 @@ from gaitnet.vio.records import FilterRecorder
 from gaitnet.vio.result import StanceFoot, VioResult
 from gaitnet.vio.smoother import SmootherOptions, SmootherResult, smooth
 from gaitnet.vio.state import FilterState
+from gaitnet.vio.tag_refusals import RefusedSheets, within_drift
 
 log = logging.getLogger(__name__)
 
@@ -87,36 +88,6 @@ def _reason(up: covariance.UpdateResult) -> str:
     if np.isfinite(up.chi2) and "chi2" in up.reason:
         return "outside the chi2 gate"
     return _without_numbers(up.reason) or "rejected"
-
-
-def _within_drift(m: Measurement, state: FilterState, drift_m: float, probability: float) -> bool:
-    """Whether the tag measurement ``m`` (position residual, ``H = I`` on ``pos``) passes the
-    χ² gate once the odometry's possible drift ``drift_m`` (standard deviation, horizontal) is
-    added to its covariance (``filter.odometry_scale_std``); False without a drift, a gate, or
-    for a measurement that is not the position-only one."""
-    if drift_m <= 0 or not probability or set(m.H) != {"pos"}:
-        return False
-    S = state.P[3:6, 3:6] + m.R + np.diag([drift_m**2, drift_m**2, 0.0])
-    chi2 = covariance.mahalanobis2(S, np.asarray(m.residual, dtype=np.float64))
-    return np.isfinite(chi2) and chi2 <= covariance.chi2_gate(m.dim, probability)
-
-
-RECOVERY_STEP_M = 0.03
-"""Largest change of a refused sheet pose's position residual from one refused frame to the
-next for the refusals to count as steady (``filter.tag_recovery_frames``): a drifted filter's
-residual grows by millimetres per frame; a wrong decode jumps."""
-
-
-def _steadily_refused(refused: list[tuple[int, np.ndarray]], n: int) -> bool:
-    """Whether the last ``n`` (≥ 2) refused sheet poses ``(frame index, position residual)``
-    come from ``n`` frames in a row (a frame without a decode between them allowed) and change
-    by at most :data:`RECOVERY_STEP_M` from one to the next."""
-    if n < 2 or len(refused) < n:
-        return False
-    last = refused[-n:]
-    frames = np.array([k for k, _ in last])
-    steps = np.linalg.norm(np.diff(np.array([r for _, r in last]), axis=0), axis=1)
-    return bool(np.all(np.diff(frames) <= 2) and np.all(steps <= RECOVERY_STEP_M))
 
 
 def _freeze(state: FilterState, lm_id: int, lm: _Landmark) -> None:
@@ -198,7 +169,7 @@ def run_vio(
     tags_initialised = init.method == "apriltag"
     boards_seen: set[str] = {init.board} if init.board else set()
     p_last_tag = state.imu.p_IinW.copy()  # where the odometry's drift starts to count
-    refused_tags: list[tuple[int, np.ndarray]] = []  # sheet poses refused since the last taken
+    refused_tags = RefusedSheets(cfg.filter.tag_recovery_frames)
     clock["initialise"] += time.thread_time() - tic
 
     for frame in _frames(source, progress):
@@ -273,15 +244,12 @@ def run_vio(
                     use_attitude=use_attitude,
                 )
                 up = gated_update(m, cfg.filter.tag_gate_probability)
-                if not up.accepted and set(m.H) == {"pos"} and np.isfinite(up.chi2):
-                    refused_tags.append((k, np.asarray(m.residual, dtype=np.float64)))
-                    if _steadily_refused(refused_tags, cfg.filter.tag_recovery_frames):
-                        # the filter has drifted beyond its covariance: widen it to take the
-                        # sheet (a sheet seen steadily frame after frame is not a wrong decode)
-                        gate = covariance.chi2_gate(m.dim, cfg.filter.tag_gate_probability)
-                        factor = covariance.inflate_to_pass(state, m, 0.5 * gate)
-                        if np.isfinite(factor):
-                            up = gated_update(m, cfg.filter.tag_gate_probability)
+                if not up.accepted:
+                    factor = refused_tags.widen_if_steady(
+                        state, k, m, up.chi2, cfg.filter.tag_gate_probability
+                    )
+                    if np.isfinite(factor):  # drifted beyond its covariance, not a wrong decode
+                        up = gated_update(m, cfg.filter.tag_gate_probability)
                         if up.accepted:
                             result_used["tag_recovered"] += 1
                             log.info(
@@ -292,7 +260,7 @@ def run_vio(
                                 100 * float(np.linalg.norm(m.residual)), factor,
                             )  # fmt: skip
                 if up.accepted:
-                    refused_tags.clear()
+                    refused_tags.refused.clear()
                     result_used["tag"] += 1
                     tags_initialised = True
                     boards_seen.add(obs.board)
@@ -300,7 +268,7 @@ def run_vio(
                     recorder.add_tag(
                         obs.T_WfromC, cov_I, end_sheet_eps2=eps2, use_attitude=use_attitude
                     )
-                elif _within_drift(m, state, drift_m, cfg.filter.tag_gate_probability):
+                elif within_drift(m, state, drift_m, cfg.filter.tag_gate_probability):
                     result_used["tag_smoother_only"] += 1  # the filter still misses it
                     recorder.add_tag(
                         obs.T_WfromC, cov_I, end_sheet_eps2=eps2, use_attitude=use_attitude
