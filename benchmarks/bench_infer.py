@@ -44,7 +44,7 @@ from gaitnet.evaluation.evaluate import evaluate_result
 from gaitnet.io import open_session
 from gaitnet.motion.onnx_runtime import OnnxPredictor
 from gaitnet.pipeline.config import InferConfig
-from gaitnet.pipeline.infer import default_predictor_path, observe, reconstruct
+from gaitnet.pipeline.infer import Observations, default_predictor_path, observe, reconstruct
 from gaitnet.pipeline.outputs import write_infer_files
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
 from gaitnet.segmentation.segment_session import default_segmenter_path
@@ -111,6 +111,31 @@ def _flat(metrics: dict) -> dict[str, float]:
     return out
 
 
+def cached_observations(
+    session_dir: Path, base: InferConfig, segmenter: str | None, cache: Path | None
+) -> Observations:
+    """The filter's and the segmenter's observations of a session
+    (:func:`gaitnet.pipeline.infer.observe`), from ``cache`` when it holds them (one file per
+    session, segmenter and edge refinement) and kept there when computed. ``segmenter``: an
+    ONNX file, ``"oracle"`` or None (the committed one)."""
+    tag = "oracle" if segmenter == "oracle" else Path(segmenter or "default").stem
+    refine = base.edge_refine
+    if tag != "oracle" and refine.radius_px:
+        tag += f"_refine{refine.radius_px}-{refine.eps:g}-{refine.region}"
+    cached = cache / f"{session_dir.name}_{tag}.pkl" if cache else None
+    if cached is not None and cached.exists():
+        return pickle.loads(cached.read_bytes())
+    if segmenter == "oracle":
+        model = OracleSegmenter(session_dir)
+    else:
+        model = OnnxSegmenter(segmenter or default_segmenter_path(), threads=1, edge_refine=refine)
+    obs = observe(open_session(session_dir), base, model)
+    if cached is not None:
+        cached.parent.mkdir(parents=True, exist_ok=True)
+        cached.write_bytes(pickle.dumps(obs))
+    return obs
+
+
 def main() -> None:
     ap = ScriptParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("sessions", nargs="+", type=Path)
@@ -134,24 +159,7 @@ def main() -> None:
     table: dict[str, dict[str, list[float]]] = {name: {} for name in runs}
     timing: list[dict[str, float]] = []
     for session_dir in args.sessions:
-        tag = "oracle" if args.segmenter == "oracle" else Path(args.segmenter or "default").stem
-        refine = base.edge_refine
-        if tag != "oracle" and refine.radius_px:
-            tag += f"_refine{refine.radius_px}-{refine.eps:g}-{refine.region}"
-        cached = args.cache / f"{session_dir.name}_{tag}.pkl" if args.cache else None
-        if cached is not None and cached.exists():
-            obs = pickle.loads(cached.read_bytes())
-        else:
-            if args.segmenter == "oracle":
-                segmenter = OracleSegmenter(session_dir)
-            else:
-                segmenter = OnnxSegmenter(
-                    args.segmenter or default_segmenter_path(), threads=1, edge_refine=refine
-                )
-            obs = observe(open_session(session_dir), base, segmenter)
-            if cached is not None:
-                cached.parent.mkdir(parents=True, exist_ok=True)
-                cached.write_bytes(pickle.dumps(obs))
+        obs = cached_observations(session_dir, base, args.segmenter, args.cache)
         for name, cfg in runs.items():
             start = time.perf_counter()
             result = reconstruct(obs, cfg, predictor)

@@ -38,7 +38,8 @@ def test_a_bad_option_is_one_line(script: str) -> None:
 
 
 @pytest.mark.parametrize(
-    "script", ["bench_swing_fill.py", "bench_infer.py", "bench_segmenter_labels.py"]
+    "script",
+    ["bench_swing_fill.py", "bench_infer.py", "bench_segmenter_labels.py", "bench_swing_errors.py"],
 )
 def test_a_missing_input_is_one_line(tmp_path: Path, script: str) -> None:
     missing = str(tmp_path / "missing")

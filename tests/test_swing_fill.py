@@ -14,6 +14,7 @@ from gaitnet.pipeline.swing_fill import (
     SWING_SPAN_PER_CONTRALATERAL,
     SWING_SPAN_PER_CYCLE,
     SWING_TAU,
+    plan_swings,
     swing_fill,
 )
 from gaitnet.vio.result import StanceFoot
@@ -64,6 +65,23 @@ def test_known_answer_at_heel_off_mid_swing_and_landing() -> None:
     x = out[gap, 0, 0]
     assert (np.diff(x) >= -1e-12).all()
     assert abs(out[int(round(1.2 * FPS)) - 1, 0, 0] - 1.2) < 0.01
+
+
+def test_plan_says_what_set_each_swings_start() -> None:
+    # the two cases above: the last rest frame (0.6 s) after the timed start (1.2 − span(1.2)),
+    # and the timed start (1.6 − span(1.6)) after the last rest frame (0.2 s)
+    for rests, heel_off, from_rest_end in (
+        ([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)], 0.6, True),
+        ([(0.0, 0.2, 0.0), (1.6, 2.5, 1.0)], 1.6 - _span(1.6), False),
+    ):
+        t, measured, feet = _walk(rests)
+        (plan,) = plan_swings(t, measured, feet)
+        assert (plan.side, plan.first, plan.from_rest_end) == (0, True, from_rest_end)
+        assert plan.heel_off_s == pytest.approx(heel_off, abs=1e-12)
+        assert plan.landing_s == rests[1][0]
+        np.testing.assert_array_equal(
+            plan.window, np.isfinite(swing_fill(t, measured, feet, H)[:, 0, 0])
+        )
 
 
 def test_heel_off_from_the_cycle_when_the_foot_is_seen_resting_late() -> None:

@@ -79,6 +79,8 @@ __all__ = [
     "SWING_SPAN_PER_CONTRALATERAL",
     "SWING_SPAN_PER_CYCLE",
     "SWING_TAU",
+    "SwingPlan",
+    "plan_swings",
     "swing_fill",
 ]
 
@@ -124,21 +126,36 @@ class _Swing:
         return float(np.hypot(*(self.p1 - self.p0)[:2]))
 
 
-def swing_fill(
+@dataclass(frozen=True)
+class SwingPlan:
+    """Where and when one unseen swing is laid (module docstring): ``side`` (0 left, 1 right),
+    the rest points ``p0``, ``p1`` (3,), the swing's start ``heel_off_s`` and its landing
+    ``landing_s`` (the next landmark's first frame), whether it is the foot's first pair and
+    whether the filter's last sight of the foot resting set the start
+    (``from_rest_end``: the timing line put it earlier), and the frames it fills (``window``
+    (n,) bool)."""
+
+    side: int
+    p0: np.ndarray
+    p1: np.ndarray
+    heel_off_s: float
+    landing_s: float
+    first: bool
+    from_rest_end: bool
+    window: np.ndarray
+
+
+def plan_swings(
     t_s: np.ndarray,
     measured: np.ndarray,
     stance_feet: Sequence[StanceFoot],
-    body_height_m: float,
     span_offset_s: float = SWING_SPAN_OFFSET_S,
     span_per_cycle: float = SWING_SPAN_PER_CYCLE,
     span_contralateral_offset_s: float = SWING_SPAN_CONTRALATERAL_OFFSET_S,
     span_per_contralateral: float = SWING_SPAN_PER_CONTRALATERAL,
-) -> np.ndarray:
-    """Foot points (n, 2, 3) for the unseen frames of each foot's swings (module docstring),
-    NaN elsewhere. ``t_s`` (n,) frame times, ``measured`` (n, 2, 3) the measured foot points
-    (left, right; NaN where not seen), ``stance_feet`` the filter's landmarks (a stance
-    reported twice is made one first, :func:`gaitnet.vio.gait.merge_split_stances`);
-    ``span_per_contralateral`` 0 times every swing by its cycle alone."""
+) -> list[SwingPlan]:
+    """The swings :func:`swing_fill` fills (arguments as there), in the order of its feet's
+    landmarks."""
     t_s = np.asarray(t_s, dtype=np.float64)
     measured = np.asarray(measured, dtype=np.float64)
     if measured.shape != (len(t_s), 2, 3):
@@ -159,7 +176,7 @@ def swing_fill(
     if len(reference) >= MIN_REFERENCES:
         typical_cycle = float(np.median([w.cycle_s for w in reference]))
         typical_stride = float(np.median([w.stride_m for w in reference]))
-    out = np.full(measured.shape, np.nan)
+    plans = []
     for w in swings:
         cycle = w.cycle_s
         if not np.isfinite(typical_cycle):
@@ -180,15 +197,53 @@ def swing_fill(
             and CONTRALATERAL_SHARE[0] * cycle <= to_landing <= CONTRALATERAL_SHARE[1] * cycle
         ):
             span_s = span_contralateral_offset_s + span_per_contralateral * to_landing
-        heel_off = max(w.after.t_first_s - span_s, w.before.t_last_s)
+        timed = w.after.t_first_s - span_s
         window = (t_s > w.before.t_last_s) & (t_s < w.after.t_first_s) & ~seen[:, w.side]
         if not window.any():
             continue
-        span = max(w.after.t_first_s - heel_off, 1e-6)
-        tau = np.clip((t_s[window] - heel_off) / span, 0.0, 1.0)
+        plans.append(
+            SwingPlan(
+                side=w.side,
+                p0=w.p0,
+                p1=w.p1,
+                heel_off_s=max(timed, w.before.t_last_s),
+                landing_s=w.after.t_first_s,
+                first=w.first,
+                from_rest_end=w.before.t_last_s > timed,
+                window=window,
+            )
+        )
+    return plans
+
+
+def swing_fill(
+    t_s: np.ndarray,
+    measured: np.ndarray,
+    stance_feet: Sequence[StanceFoot],
+    body_height_m: float,
+    span_offset_s: float = SWING_SPAN_OFFSET_S,
+    span_per_cycle: float = SWING_SPAN_PER_CYCLE,
+    span_contralateral_offset_s: float = SWING_SPAN_CONTRALATERAL_OFFSET_S,
+    span_per_contralateral: float = SWING_SPAN_PER_CONTRALATERAL,
+) -> np.ndarray:
+    """Foot points (n, 2, 3) for the unseen frames of each foot's swings (module docstring),
+    NaN elsewhere. ``t_s`` (n,) frame times, ``measured`` (n, 2, 3) the measured foot points
+    (left, right; NaN where not seen), ``stance_feet`` the filter's landmarks (a stance
+    reported twice is made one first, :func:`gaitnet.vio.gait.merge_split_stances`);
+    ``span_per_contralateral`` 0 times every swing by its cycle alone. Where and when each
+    swing is laid: :func:`plan_swings`."""
+    t_s = np.asarray(t_s, dtype=np.float64)
+    plans = plan_swings(
+        t_s, measured, stance_feet, span_offset_s, span_per_cycle,
+        span_contralateral_offset_s, span_per_contralateral,
+    )  # fmt: skip
+    out = np.full((len(t_s), 2, 3), np.nan)
+    for w in plans:
+        span = max(w.landing_s - w.heel_off_s, 1e-6)
+        tau = np.clip((t_s[w.window] - w.heel_off_s) / span, 0.0, 1.0)
         rho = np.interp(tau, SWING_TAU, SWING_PROGRESS)
-        out[window, w.side] = w.p0 + rho[:, None] * (w.p1 - w.p0)
-        out[window, w.side, 2] += np.interp(tau, SWING_TAU, SWING_LIFT) * body_height_m
+        out[w.window, w.side] = w.p0 + rho[:, None] * (w.p1 - w.p0)
+        out[w.window, w.side, 2] += np.interp(tau, SWING_TAU, SWING_LIFT) * body_height_m
     return out
 
 
