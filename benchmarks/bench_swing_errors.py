@@ -44,15 +44,24 @@ TAU_BINS = np.linspace(0.0, 1.0, 11)
 
 
 def true_events(session_dir: Path) -> dict[str, list[tuple[float, float]]]:
-    """Per side, ``(foot_flat_s, heel_off_s)`` of each true stance (NaN where it has none)."""
+    """Per side, ``(foot_flat_s, heel_off_s)`` of each true stance (NaN where it has none);
+    an :class:`InputError` naming the file when ``events.csv`` or ``feet.csv`` is missing or
+    the events do not read."""
     path = session_dir / "groundtruth" / "events.csv"
     if not path.is_file():
         raise InputError(f"{path}: missing (a simulated session's ground truth is needed)")
+    if not (session_dir / "groundtruth" / "feet.csv").is_file():
+        raise InputError(f"{session_dir / 'groundtruth' / 'feet.csv'}: missing")
     out: dict[str, list[tuple[float, float]]] = {side: [] for side in SIDES}
-    with path.open(newline="", encoding="utf-8") as f:
-        for row in csv.DictReader(f):
-            flat, off = (float(row[k]) if row[k] else np.nan for k in ("foot_flat_s", "heel_off_s"))
-            out[row["side"]].append((flat, off))
+    try:
+        with path.open(newline="", encoding="utf-8") as f:
+            for row in csv.DictReader(f):
+                flat, off = (
+                    float(row[k]) if row[k] else np.nan for k in ("foot_flat_s", "heel_off_s")
+                )
+                out[row["side"]].append((flat, off))
+    except (KeyError, TypeError, ValueError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not a simulator events file ({exc!r})") from None
     return out
 
 
@@ -148,6 +157,9 @@ def main() -> None:
     for side in SIDES:
         e = np.concatenate(errors[side])
         print(f" {side}")
+        if not len(e):
+            print("  no filled frames")
+            continue
         print(_row("all", e[:, :3]))
         for lo, hi in zip(TAU_BINS[:-1], TAU_BINS[1:], strict=True):
             inside = (e[:, 3] >= lo) & (e[:, 3] < hi)

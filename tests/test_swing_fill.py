@@ -68,8 +68,8 @@ def test_known_answer_at_heel_off_mid_swing_and_landing() -> None:
 
 
 def test_plan_says_what_set_each_swings_start() -> None:
-    # the two cases above: the last rest frame (0.6 s) after the timed start (1.2 − span(1.2)),
-    # and the timed start (1.6 − span(1.6)) after the last rest frame (0.2 s)
+    # the case above and the one below: the last rest frame (0.6 s) after the timed start
+    # (1.2 − span(1.2)), and the timed start (1.6 − span(1.6)) after the last rest frame (0.2 s)
     for rests, heel_off, from_rest_end in (
         ([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)], 0.6, True),
         ([(0.0, 0.2, 0.0), (1.6, 2.5, 1.0)], 1.6 - _span(1.6), False),

@@ -154,8 +154,8 @@ def plan_swings(
     span_contralateral_offset_s: float = SWING_SPAN_CONTRALATERAL_OFFSET_S,
     span_per_contralateral: float = SWING_SPAN_PER_CONTRALATERAL,
 ) -> list[SwingPlan]:
-    """The swings :func:`swing_fill` fills (arguments as there), in the order of its feet's
-    landmarks."""
+    """The swings :func:`swing_fill` fills (arguments as there): the left foot's in time order,
+    then the right foot's."""
     t_s = np.asarray(t_s, dtype=np.float64)
     measured = np.asarray(measured, dtype=np.float64)
     if measured.shape != (len(t_s), 2, 3):
