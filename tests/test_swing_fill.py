@@ -324,6 +324,8 @@ def test_committed_span_line_is_the_gait_generators() -> None:
         ("swing_span_per_contralateral", "3", r"swing_span_per_contralateral must be within"),
         ("swing_span_per_contralateral", "-1", r"swing_span_per_contralateral must be within"),
         ("swing_span_contralateral_offset_s", "0.6", r"contralateral_offset_s must be within"),
+        ("swing_retime_weight", "1.5", r"swing_retime_weight must be within"),
+        ("swing_retime_max_shift_s", "-0.1", r"swing_retime_max_shift_s must be within"),
     ],
 )
 def test_contralateral_span_keys_are_checked(key: str, value: str, message: str) -> None:
@@ -335,3 +337,41 @@ def test_contralateral_span_keys_are_checked(key: str, value: str, message: str)
         load_config(InferConfig, None, [f"pipeline.{key}={value}"])
     off = load_config(InferConfig, None, ["pipeline.swing_span_per_contralateral=0"])
     assert off.pipeline.swing_span_per_contralateral == 0
+
+
+def test_the_start_read_where_the_foot_is_seen_again() -> None:
+    # the second pair of the case above: the timing line starts the swing at 2.4 − span; the
+    # foot is seen again in late swing, on the template laid from a start 40 ms later
+    t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 1.4, 1.2), (2.4, 3.0, 2.4)], n=110)
+    right = [_rest("right", 1.85, 2.6, 1.8)]
+    line = 2.4 - (SWING_SPAN_CONTRALATERAL_OFFSET_S + SWING_SPAN_PER_CONTRALATERAL * 0.55)
+    true_start = line + 0.04
+    late = (t > 2.15) & (t < 2.4)
+    rho = np.interp((t[late] - true_start) / (2.4 - true_start), SWING_TAU, SWING_PROGRESS)
+    measured[late, 0] = np.c_[1.2 + 1.2 * rho, np.full(late.sum(), 0.1), np.full(late.sum(), 0.05)]
+    assert ((rho > 0.5) & (rho < 0.97)).sum() >= 3 and (rho > 0.97).any()  # some are not read
+
+    def start(**retime) -> float:
+        plans = plan_swings(t, measured, feet + right, **retime)
+        (second,) = [p for p in plans if p.side == 0 and not p.first]
+        return second.heel_off_s
+
+    assert start(retime_weight=0.0) == pytest.approx(line, abs=1e-12)
+    assert start(retime_weight=1.0) == pytest.approx(true_start, abs=1e-9)
+    assert start(retime_weight=0.5) == pytest.approx(line + 0.02, abs=1e-9)  # the default
+    assert start() == pytest.approx(line + 0.02, abs=1e-9)
+    assert start(retime_weight=1.0, retime_max_shift_s=0.01) == pytest.approx(line + 0.01)
+    # the fill follows the start it is given
+    filled = swing_fill(t, measured, feet + right, H, retime_weight=1.0)
+    k = np.flatnonzero(np.isfinite(filled[:, 0, 0]) & (t > 2.0))
+    expected = 1.2 + 1.2 * np.interp(
+        (t[k] - true_start) / (2.4 - true_start), SWING_TAU, SWING_PROGRESS
+    )
+    np.testing.assert_allclose(filled[k, 0, 0], expected, atol=1e-9)
+    # a foot's first pair is never re-timed
+    (first,) = [
+        p
+        for p in plan_swings(t, measured, feet + right, retime_weight=1.0)
+        if p.first and p.side == 0
+    ]
+    assert first.heel_off_s == pytest.approx(0.6)

@@ -17,6 +17,8 @@ from typing import ClassVar, Literal
 from gaitnet.checks import check_int_range, check_range
 from gaitnet.pipeline.pose_types import PoseCorrectionParams
 from gaitnet.pipeline.swing_fill import (
+    SWING_RETIME_MAX_SHIFT_S,
+    SWING_RETIME_WEIGHT,
     SWING_SPAN_CONTRALATERAL_OFFSET_S,
     SWING_SPAN_OFFSET_S,
     SWING_SPAN_PER_CONTRALATERAL,
@@ -139,6 +141,14 @@ class PipelineParams:
     ends; the gait generator's swings, ``data/derive_swing_template.py``)."""
     swing_span_per_contralateral: float = SWING_SPAN_PER_CONTRALATERAL
     """See ``swing_span_contralateral_offset_s``; 0: every swing's span from its cycle."""
+    swing_retime_weight: float = SWING_RETIME_WEIGHT
+    """For ``gap_fill: swing`` (not a foot's first pair): where the foot is seen again before it
+    lands, the template's time at its measured progress (0.5–0.97 of the way) gives the swing's
+    start too (their median); the start moves this share of the way to it (0: off; 0.5: the
+    two estimates averaged; :mod:`gaitnet.pipeline.swing_fill`)."""
+    swing_retime_max_shift_s: float = SWING_RETIME_MAX_SHIFT_S
+    """The start read where the foot is seen again is kept within this of the timing line's
+    (or the rest's last frame's) [s]."""
     marker_offset_m: tuple[float, float, float] = (0.0, -0.011, 0.079)
     """The reported foot point (``feet.csv``, the foot trajectories): the shoe marker over the
     instep, in the ankle frame (SMPL axes: x left, y up, z forward; mirrored for the right
@@ -166,6 +176,10 @@ class PipelineParams:
                 "pipeline.swing_span_per_contralateral",
                 self.swing_span_per_contralateral, 0.5, 2.5, " (or 0: off)",
             )  # fmt: skip
+        check_range("pipeline.swing_retime_weight", self.swing_retime_weight, 0.0, 1.0)
+        check_range(
+            "pipeline.swing_retime_max_shift_s", self.swing_retime_max_shift_s, 0.0, 0.5, " s"
+        )
         if self.subject_height_m != 0:
             check_range("pipeline.subject_height_m", self.subject_height_m, 0.8, 2.3, " m")
         check_range("pipeline.camera_height_fraction", self.camera_height_fraction, 0.3, 0.8)
