@@ -2,9 +2,10 @@
 
     python data/derive_swing_template.py [--subjects 6] [--seed 0]
 
-Prints the instep marker's mean progress and lift from heel off to the next foot flat
-(:mod:`gaitnet.sim.swing_profile`) over random subjects walking 10 m at 0.8–1.6 m/s, at the 21
-template points, as the arrays ``SWING_PROGRESS`` and ``SWING_LIFT`` of
+Prints the instep marker's mean progress, lift and sideways (outwards) path from heel off to
+the next foot flat (:mod:`gaitnet.sim.swing_profile`) over random subjects walking 10 m at
+0.8–1.6 m/s, at the 21 template points, as the arrays ``SWING_PROGRESS``, ``SWING_LIFT`` and
+``SWING_SIDEWAYS`` of
 ``gaitnet/pipeline/swing_fill.py``, with their swing-to-swing spread and the heel-off share of
 the gait cycle; then the line ``span = a + b · cycle`` through the spans that lay the committed
 template best over each swing at 0.6–1.7 m/s (``SWING_SPAN_OFFSET_S``,
@@ -43,6 +44,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  spread (std)   [{_row(t['progress_std'])}]")
     print(f"SWING_LIFT = [{_row(t['lift'])}]")
     print(f"  spread (std)   [{_row(t['lift_std'])}]")
+    print(f"SWING_SIDEWAYS = [{_row(t['sideways'])}]")
+    print(f"  spread (std)   [{_row(t['sideways_std'])}]")
     mean, std = t["fraction"]
     print(f"heel off to next foot flat: {mean:.3f} ± {std:.3f} of the gait cycle")
     span = derive_swing_span(SWING_TAU, SWING_PROGRESS, seed=args.seed)

@@ -9,6 +9,7 @@ import pytest
 from gaitnet.pipeline.swing_fill import (
     SWING_LIFT,
     SWING_PROGRESS,
+    SWING_SIDEWAYS,
     SWING_SPAN_CONTRALATERAL_OFFSET_S,
     SWING_SPAN_OFFSET_S,
     SWING_SPAN_PER_CONTRALATERAL,
@@ -59,12 +60,41 @@ def test_known_answer_at_heel_off_mid_swing_and_landing() -> None:
     # at t = 0.9 s, half-way from heel off (0.6 s) to foot flat (1.2 s): τ = 0.5, a grid point
     k = int(round(0.9 * FPS))
     i = int(np.flatnonzero(np.isclose(SWING_TAU, 0.5))[0])
-    expected = np.array([SWING_PROGRESS[i] * 1.2, 0.1, 0.01 + SWING_LIFT[i] * H])
+    # walking along +x the left foot's outwards is +y
+    expected = np.array(
+        [SWING_PROGRESS[i] * 1.2, 0.1 + SWING_SIDEWAYS[i] * H, 0.01 + SWING_LIFT[i] * H]
+    )
     np.testing.assert_allclose(out[k, 0], expected, atol=1e-12)
     # the path moves forward only, and lands: just before foot flat it is within 1 cm
     x = out[gap, 0, 0]
     assert (np.diff(x) >= -1e-12).all()
     assert abs(out[int(round(1.2 * FPS)) - 1, 0, 0] - 1.2) < 0.01
+
+
+@pytest.mark.parametrize("side", [0, 1])
+@pytest.mark.parametrize("heading_deg", [0.0, 90.0, 200.0])
+def test_the_swing_bows_away_from_the_midline(side: int, heading_deg: float) -> None:
+    # the walk above turned to ``heading_deg`` and given to either foot: mid-swing the fill
+    # lies SWING_SIDEWAYS · H from the straight line, to the left of the walking direction
+    # for the left foot and to the right for the right foot
+    t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)])
+    a = np.radians(heading_deg)
+    R = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    turned = np.full_like(measured, np.nan)
+    turned[:, side] = measured[:, 0] @ R.T
+    feet = [
+        StanceFoot(f.landmark_id, ("left", "right")[side], f.t_first_s, f.t_last_s,
+                   R[:2, :2] @ f.xy, f.std_xy, f.n_observations)
+        for f in feet
+    ]  # fmt: skip
+    out = swing_fill(t, turned, feet, H)
+    k = int(round(0.9 * FPS))
+    i = int(np.flatnonzero(np.isclose(SWING_TAU, 0.5))[0])
+    ahead = R[:2, 0]
+    left_of_walk = np.array([-ahead[1], ahead[0]])
+    offset = (out[k, side, :2] - R[:2, :2] @ [0.0, 0.1]) @ left_of_walk
+    assert offset == pytest.approx((1 if side == 0 else -1) * SWING_SIDEWAYS[i] * H, abs=1e-12)
+    assert SWING_SIDEWAYS[i] * H > 0.02  # more than 2 cm: the test can tell the sides apart
 
 
 def test_plan_says_what_set_each_swings_start() -> None:
@@ -280,7 +310,8 @@ def test_template_shape() -> None:
     assert SWING_PROGRESS[0] == 0 and SWING_PROGRESS[-1] == 1
     assert (np.diff(SWING_PROGRESS) >= 0).all()
     assert SWING_LIFT[0] == 0 and SWING_LIFT[-1] == 0 and (SWING_LIFT >= 0).all()
-    assert len(SWING_TAU) == len(SWING_PROGRESS) == len(SWING_LIFT)
+    assert SWING_SIDEWAYS[0] == 0 and SWING_SIDEWAYS[-1] == 0
+    assert len(SWING_TAU) == len(SWING_PROGRESS) == len(SWING_LIFT) == len(SWING_SIDEWAYS)
 
 
 def test_committed_template_is_the_gait_generators() -> None:
@@ -293,6 +324,8 @@ def test_committed_template_is_the_gait_generators() -> None:
     spread = np.maximum(fresh["progress_std"], 0.01)
     assert (np.abs(fresh["progress"] - SWING_PROGRESS) < spread).all()
     assert np.abs(fresh["lift"] - SWING_LIFT).max() < 0.005
+    assert np.abs(fresh["sideways"] - SWING_SIDEWAYS).max() < 0.005  # outwards, both feet
+    assert fresh["sideways"].max() > 0.01
     assert abs(fresh["fraction"][0] - 0.75) < 0.03
 
 

@@ -9,7 +9,7 @@ it (two consecutive stance landmarks of that foot, :class:`gaitnet.vio.result.St
 when it lands (the next landmark's first frame, at foot flat). Between them the swing of a
 walking foot has a stereotyped shape, which this module lays between the two rests:
 
-    f(t) = p₀ + ρ(τ) (p₁ − p₀) + λ(τ) H ẑ,   τ = clip((t − t_HO) / (t_FF′ − t_HO), 0, 1)
+    f(t) = p₀ + ρ(τ) (p₁ − p₀) + μ(τ) H n̂ + λ(τ) H ẑ,   τ = clip((t − t_HO) / (t_FF′ − t_HO), 0, 1)
 
 - ``p₀``, ``p₁``: the median measured foot point over the frames of each stance (the points
   the correction is given, so the fill is the same kind of point);
@@ -35,11 +35,16 @@ walking foot has a stereotyped shape, which this module lays between the two res
   start or a missed one) and not for a foot's first pair (a step out of standing, whose
   timing the steady swings of the fit do not describe); never before the last frame the
   filter saw the foot resting;
-- ``ρ`` (0 → 1, :data:`SWING_PROGRESS`) and ``λ`` (:data:`SWING_LIFT`, a fraction of the body
-  height ``H``): the mean path of the instep marker from heel off to the next foot flat over
-  the simulator's walks at 0.8–1.6 m/s (458 swings of 30 subjects; derived by
-  ``data/derive_swing_template.py`` with :func:`gaitnet.sim.swing_profile.derive_swing_template`,
-  and checked against a fresh derivation by a test); on real walks it fits less well than on
+- ``ρ`` (0 → 1, :data:`SWING_PROGRESS`), ``λ`` (:data:`SWING_LIFT`) and ``μ``
+  (:data:`SWING_SIDEWAYS`; ``λ``, ``μ`` fractions of the body height ``H``): the mean path of
+  the instep marker from heel off to the next foot flat over the simulator's walks at
+  0.8–1.6 m/s (458 swings of 30 subjects; derived by ``data/derive_swing_template.py`` with
+  :func:`gaitnet.sim.swing_profile.derive_swing_template`, and checked against a fresh
+  derivation by a test): forward, up, and outwards along ``n̂``, the horizontal unit vector
+  square to ``p₁ − p₀`` away from the body's midline (to the left of the walking direction
+  for the left foot, to the right for the right); the foot bows outwards by up to 0.018 H
+  (3.3 cm at 1.8 m) in mid-swing, on the CMU walks of ``benchmarks/bench_swing_fill.py`` by
+  about half that (docs/pipeline.md); on real walks the template fits less well than on
   simulated ones (docs/pipeline.md, *Limits*).
 
 Where the foot is seen again before it lands (not for a foot's first pair), its measured points
@@ -87,6 +92,7 @@ __all__ = [
     "SWING_PROGRESS",
     "SWING_RETIME_MAX_SHIFT_S",
     "SWING_RETIME_WEIGHT",
+    "SWING_SIDEWAYS",
     "SWING_SPAN_CONTRALATERAL_OFFSET_S",
     "SWING_SPAN_OFFSET_S",
     "SWING_SPAN_PER_CONTRALATERAL",
@@ -106,6 +112,10 @@ SWING_PROGRESS = np.array([
 SWING_LIFT = np.array([
     0.0, 0.0004, 0.0032, 0.0096, 0.0190, 0.0292, 0.0371, 0.0414, 0.0462, 0.0503, 0.0530,
     0.0531, 0.0508, 0.0480, 0.0451, 0.0400, 0.0318, 0.0220, 0.0113, 0.0023, 0.0,
+])
+SWING_SIDEWAYS = np.array([
+    0.0, 0.0, 0.0002, 0.0006, 0.0013, 0.0026, 0.0042, 0.0062, 0.0087, 0.0116, 0.0148,
+    0.0175, 0.0182, 0.0161, 0.0113, 0.0053, 0.0005, -0.0012, -0.0006, -0.0001, 0.0,
 ])
 # fmt: on
 SWING_SPAN_OFFSET_S = 0.138  # span = a + b · cycle [s] (derive_swing_span, seed 0)
@@ -268,7 +278,10 @@ def swing_fill(
         span = max(w.landing_s - w.heel_off_s, 1e-6)
         tau = np.clip((t_s[w.window] - w.heel_off_s) / span, 0.0, 1.0)
         rho = np.interp(tau, SWING_TAU, SWING_PROGRESS)
-        out[w.window, w.side] = w.p0 + rho[:, None] * (w.p1 - w.p0)
+        ahead = (w.p1 - w.p0)[:2] / np.linalg.norm((w.p1 - w.p0)[:2])
+        outwards = np.array([-ahead[1], ahead[0], 0.0]) * (1.0 if w.side == 0 else -1.0)
+        sideways = np.interp(tau, SWING_TAU, SWING_SIDEWAYS) * body_height_m
+        out[w.window, w.side] = w.p0 + rho[:, None] * (w.p1 - w.p0) + sideways[:, None] * outwards
         out[w.window, w.side, 2] += np.interp(tau, SWING_TAU, SWING_LIFT) * body_height_m
     return out
 

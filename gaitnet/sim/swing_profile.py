@@ -12,7 +12,10 @@ For one foot between heel off ``HO`` of stance ``i`` and foot flat ``FF'`` of st
 
 - progress ``ρ(τ) = (m(t) − m(HO))·u / |d_xy|`` (0 → 1 along the step);
 - lift ``λ(τ) = (m_z(t) − m_z(HO) − ρ(τ) d_z) / H`` (height above the straight line between
-  the two rests, as a fraction of the body height ``H``).
+  the two rests, as a fraction of the body height ``H``);
+- sideways ``μ(τ) = ±(m(t) − m(HO))·n / H`` with ``n`` the horizontal unit vector left of
+  ``u``, + for the left foot and − for the right: how far the marker strays from the straight
+  line away from the body's midline (outwards), as a fraction of ``H``.
 
 The fill also needs the template's time span ``FF' − t₀`` for a gait cycle ``T`` (``FF' − FF``
 of one foot): :func:`swing_spans` fits, per swing, the span ``s`` for which the template laid
@@ -63,21 +66,29 @@ def _progress(walk: Walk, foot: int, t: np.ndarray) -> tuple[np.ndarray, np.ndar
     return (m - m[0]) @ (np.array([d[0], d[1], 0.0]) / step) / step, m
 
 
-def swing_profiles(walk: Walk, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(progress, lift, fraction)`` of every swing of ``walk`` (module docstring) at ``tau``:
-    progress and lift (m, len(tau)); fraction (m,): ``(FF' − HO) / (FF' − FF)``, the share of
-    the gait cycle (foot flat to foot flat) that heel off precedes the next foot flat by."""
+def swing_profiles(
+    walk: Walk, tau: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(progress, lift, sideways, fraction)`` of every swing of ``walk`` (module docstring)
+    at ``tau``: progress, lift and sideways (m, len(tau)); fraction (m,): ``(FF' − HO) / (FF' −
+    FF)``, the share of the gait cycle (foot flat to foot flat) that heel off precedes the next
+    foot flat by."""
     tau = np.asarray(tau, dtype=np.float64)
-    progress, lift, fraction = [], [], []
+    progress, lift, sideways, fraction = [], [], [], []
+    height = walk.subject.height_m
     for s, ff0, ho, ff1 in _swings(walk):
         rho, m = _progress(walk, s, ho + tau * (ff1 - ho))
         z = m[:, 2]
+        d = m[-1, :2] - m[0, :2]
+        outwards = np.array([-d[1], d[0]]) / np.hypot(d[0], d[1]) * (1.0 if s == 0 else -1.0)
         progress.append(rho)
-        lift.append((z - z[0] - rho * (z[-1] - z[0])) / walk.subject.height_m)
+        lift.append((z - z[0] - rho * (z[-1] - z[0])) / height)
+        sideways.append((m[:, :2] - m[0, :2]) @ outwards / height)
         fraction.append((ff1 - ho) / (ff1 - ff0))
     if not progress:
-        return np.empty((0, len(tau))), np.empty((0, len(tau))), np.empty(0)
-    return np.array(progress), np.array(lift), np.array(fraction)
+        empty = np.empty((0, len(tau)))
+        return empty, empty.copy(), empty.copy(), np.empty(0)
+    return np.array(progress), np.array(lift), np.array(sideways), np.array(fraction)
 
 
 def derive_swing_template(
@@ -89,23 +100,23 @@ def derive_swing_template(
 ) -> dict[str, np.ndarray]:
     """Mean and spread of :func:`swing_profiles` over ``subjects`` random subjects walking
     ``walk_length_m`` at each of ``speeds_mps`` (the simulator's default gait otherwise):
-    ``progress``, ``lift`` (len(tau)), their standard deviations ``progress_std``,
-    ``lift_std``, and ``fraction`` (mean, std)."""
+    ``progress``, ``lift``, ``sideways`` (len(tau)), their standard deviations
+    ``progress_std``, ``lift_std``, ``sideways_std``, and ``fraction`` (mean, std)."""
     rng = np.random.default_rng(seed)
-    parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    parts: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
     for speed in speeds_mps:
         cfg = GaitConfig(speed_mps=float(speed), walk_length_m=float(walk_length_m))
         for _ in range(subjects):
             walk = generate_walk(sample_subject(rng), cfg, rng)
             parts.append(swing_profiles(walk, tau))
-    progress = np.concatenate([p for p, _, _ in parts])
-    lift = np.concatenate([q for _, q, _ in parts])
-    fraction = np.concatenate([f for _, _, f in parts])
+    progress, lift, sideways, fraction = (np.concatenate(part) for part in zip(*parts, strict=True))
     return {
         "progress": progress.mean(axis=0),
         "progress_std": progress.std(axis=0),
         "lift": lift.mean(axis=0),
         "lift_std": lift.std(axis=0),
+        "sideways": sideways.mean(axis=0),
+        "sideways_std": sideways.std(axis=0),
         "fraction": np.array([fraction.mean(), fraction.std()]),
         "swings": np.array([len(progress)]),
     }
