@@ -113,11 +113,7 @@ def main() -> None:
     for session_dir in args.sessions:
         events = true_events(session_dir)
         obs = cached_observations(session_dir, cfg, args.segmenter, args.cache)
-        plans = plan_swings(
-            obs.vio.t_s, obs.foot_W, obs.vio.stance_feet, p.swing_span_offset_s,
-            p.swing_span_per_cycle, p.swing_span_contralateral_offset_s,
-            p.swing_span_per_contralateral, p.swing_retime_weight, p.swing_retime_max_shift_s,
-        )  # fmt: skip
+        plans = plan_swings(obs.vio.t_s, obs.foot_W, obs.vio.stance_feet, **p.swing_timing())
         for plan in plans:
             side = SIDES[plan.side]
             found = (

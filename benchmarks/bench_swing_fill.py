@@ -81,11 +81,7 @@ def score_clip(path: Path, height_m: float, rest_speed: float) -> dict[str, list
             stance.append(StanceFoot(len(stance), side, t[a], t[b], p[a, :2], np.zeros(2), 1))
         for (a0, b0), (a1, _) in zip(rests, rests[1:], strict=False):
             out["fraction"].append((t[a1] - t[b0]) / (t[a1] - t[a0]))
-    params = PipelineParams()
-    filled = swing_fill(
-        t, measured, stance, height_m, params.swing_span_offset_s, params.swing_span_per_cycle,
-        params.swing_span_contralateral_offset_s, params.swing_span_per_contralateral,
-    )  # fmt: skip
+    filled = swing_fill(t, measured, stance, height_m, **PipelineParams().swing_timing())
     for s in range(2):
         unseen = np.isnan(measured[:, s, 0])
         use = unseen & np.isfinite(filled[:, s, 0])

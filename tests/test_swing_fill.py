@@ -14,6 +14,7 @@ from gaitnet.pipeline.swing_fill import (
     SWING_SPAN_OFFSET_S,
     SWING_SPAN_PER_CONTRALATERAL,
     SWING_SPAN_PER_CYCLE,
+    SWING_START_DELAY_S,
     SWING_TAU,
     plan_swings,
     swing_fill,
@@ -24,9 +25,15 @@ FPS = 30.0
 H = 1.75
 
 
-def _span(cycle: float) -> float:
-    """The template's span for a gait cycle [s], with the default constants."""
+def _line(cycle: float) -> float:
+    """The cycle's line for a gait cycle [s], with the default constants."""
     return SWING_SPAN_OFFSET_S + SWING_SPAN_PER_CYCLE * cycle
+
+
+def _span(cycle: float) -> float:
+    """The span the template is laid over (its start to the foot flat) for a gait cycle [s]:
+    the line less the start delay."""
+    return _line(cycle) - SWING_START_DELAY_S
 
 
 def _rest(side: str, t0: float, t1: float, x: float) -> StanceFoot:
@@ -50,7 +57,7 @@ def _walk(
 
 def test_known_answer_at_heel_off_mid_swing_and_landing() -> None:
     # rest 1 at x = 0 from 0 to 0.6 s, rest 2 at x = 1.2 m from 1.2 s: cycle 1.2 s, the swing
-    # starts span(1.2) ≈ 0.87 s before the second foot flat → 0.33 s, clamped to the last rest
+    # starts span(1.2) ≈ 0.82 s before the second foot flat → 0.38 s, clamped to the last rest
     # frame 0.6 s
     t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)])
     out = swing_fill(t, measured, feet, H)
@@ -131,9 +138,10 @@ def test_heel_off_from_the_cycle_when_the_foot_is_seen_resting_late() -> None:
     # a shorter span (here a proportional one) starts the swing later
     later = swing_fill(t, measured, feet, H, span_offset_s=0.0, span_per_cycle=0.6)
     assert later[k, 0, 0] < out[k, 0, 0]
+    laid = 0.96 - SWING_START_DELAY_S
     np.testing.assert_allclose(
         later[k, 0, 0],
-        np.interp((t[k] - (1.6 - 0.96)) / 0.96, SWING_TAU, SWING_PROGRESS),
+        np.interp((t[k] - (1.6 - laid)) / laid, SWING_TAU, SWING_PROGRESS),
         atol=1e-12,
     )
 
@@ -146,6 +154,7 @@ def test_the_other_foots_landing_times_the_swing() -> None:
     right = [_rest("right", 1.85, 2.6, 1.8)]
     out = swing_fill(t, measured, feet + right, H)
     span = SWING_SPAN_CONTRALATERAL_OFFSET_S + SWING_SPAN_PER_CONTRALATERAL * 0.55
+    span -= SWING_START_DELAY_S
     assert abs(span - _span(1.2)) > 0.05  # the two lines differ here
     start = 2.4 - span
     k = np.flatnonzero((t > start) & (t < 2.4))
@@ -186,6 +195,27 @@ def test_a_foots_first_pair_keeps_the_cycles_line() -> None:
     out = swing_fill(t, measured, feet + right, H)
     assert np.isfinite(out[:, 0, 0]).sum() > 10
     np.testing.assert_array_equal(out, swing_fill(t, measured, feet, H))
+
+
+def test_the_start_delay_moves_a_timed_start_and_not_a_rest_end() -> None:
+    # the first rest seen until 0.2 s only: the cycle's line times the start, and a delay
+    # moves it by exactly that much (the landing stays); where the rest's last frame (0.6 s)
+    # sets the start, a delay that keeps the line before it changes nothing
+    t, measured, feet = _walk([(0.0, 0.2, 0.0), (1.6, 2.5, 1.0)])
+    starts = {
+        d: plan_swings(t, measured, feet, start_delay_s=d)[0] for d in (0.0, 0.05, 0.12, -0.03)
+    }
+    for d, plan in starts.items():
+        assert plan.heel_off_s == pytest.approx(1.6 - _line(1.6) + d, abs=1e-12)
+        assert plan.landing_s == 1.6 and not plan.from_rest_end
+    assert not np.array_equal(
+        swing_fill(t, measured, feet, H, start_delay_s=0.0),
+        swing_fill(t, measured, feet, H, start_delay_s=0.1),
+    )
+    t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)])
+    for d in (0.0, 0.1):
+        (plan,) = plan_swings(t, measured, feet, start_delay_s=d)
+        assert plan.heel_off_s == pytest.approx(0.6, abs=1e-12) and plan.from_rest_end
 
 
 def test_the_span_is_a_smaller_share_of_a_longer_cycle() -> None:
@@ -340,7 +370,7 @@ def test_committed_span_line_is_the_gait_generators() -> None:
     assert fresh["swings"] > 60
     for cycle in (1.0, 1.8):
         span = fresh["offset_s"] + fresh["per_cycle"] * cycle
-        assert abs(span - _span(cycle)) < 1 / 30
+        assert abs(span - _line(cycle)) < 1 / 30
     assert fresh["residual_s"] < fresh["proportional_residual_s"]
     # and the line from the other foot's foot flat, which times the swings more closely
     assert fresh["contralateral_swings"] > 0.9 * fresh["swings"]
@@ -359,9 +389,11 @@ def test_committed_span_line_is_the_gait_generators() -> None:
         ("swing_span_contralateral_offset_s", "0.6", r"contralateral_offset_s must be within"),
         ("swing_retime_weight", "1.5", r"swing_retime_weight must be within"),
         ("swing_retime_max_shift_s", "-0.1", r"swing_retime_max_shift_s must be within"),
+        ("swing_start_delay_s", "0.3", r"swing_start_delay_s must be within"),
+        ("swing_start_delay_s", "-0.25", r"swing_start_delay_s must be within"),
     ],
 )
-def test_contralateral_span_keys_are_checked(key: str, value: str, message: str) -> None:
+def test_swing_timing_keys_are_checked(key: str, value: str, message: str) -> None:
     from gaitnet.config import load_config
     from gaitnet.errors import ConfigError
     from gaitnet.pipeline.config import InferConfig
@@ -373,11 +405,13 @@ def test_contralateral_span_keys_are_checked(key: str, value: str, message: str)
 
 
 def test_the_start_read_where_the_foot_is_seen_again() -> None:
-    # the second pair of the case above: the timing line starts the swing at 2.4 − span; the
-    # foot is seen again in late swing, on the template laid from a start 40 ms later
+    # the second pair of the case above: the timing line starts the swing at 2.4 − span (its
+    # start delay included); the foot is seen again in late swing, on the template laid from a
+    # start 40 ms later
     t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 1.4, 1.2), (2.4, 3.0, 2.4)], n=110)
     right = [_rest("right", 1.85, 2.6, 1.8)]
     line = 2.4 - (SWING_SPAN_CONTRALATERAL_OFFSET_S + SWING_SPAN_PER_CONTRALATERAL * 0.55)
+    line += SWING_START_DELAY_S
     true_start = line + 0.04
     late = (t > 2.15) & (t < 2.4)
     rho = np.interp((t[late] - true_start) / (2.4 - true_start), SWING_TAU, SWING_PROGRESS)

@@ -23,6 +23,7 @@ from gaitnet.pipeline.swing_fill import (
     SWING_SPAN_OFFSET_S,
     SWING_SPAN_PER_CONTRALATERAL,
     SWING_SPAN_PER_CYCLE,
+    SWING_START_DELAY_S,
 )
 from gaitnet.segmentation.edge_refine import EdgeRefineParams
 from gaitnet.segmentation.hha import HhaParams
@@ -141,6 +142,10 @@ class PipelineParams:
     ends; the gait generator's swings, ``data/derive_swing_template.py``)."""
     swing_span_per_contralateral: float = SWING_SPAN_PER_CONTRALATERAL
     """See ``swing_span_contralateral_offset_s``; 0: every swing's span from its cycle."""
+    swing_start_delay_s: float = SWING_START_DELAY_S
+    """For ``gap_fill: swing``: the start that ``swing_span_*`` give is laid this much later
+    [s]; 0 by default: 0.05 s fills simulated sessions better and real walks worse
+    (:mod:`gaitnet.pipeline.swing_fill`, docs/pipeline.md)."""
     swing_retime_weight: float = SWING_RETIME_WEIGHT
     """For ``gap_fill: swing`` (not a foot's first pair): where the foot is seen again before it
     lands, the template's time at its measured progress (0.5–0.97 of the way) gives the swing's
@@ -176,6 +181,7 @@ class PipelineParams:
                 "pipeline.swing_span_per_contralateral",
                 self.swing_span_per_contralateral, 0.5, 2.5, " (or 0: off)",
             )  # fmt: skip
+        check_range("pipeline.swing_start_delay_s", self.swing_start_delay_s, -0.2, 0.2, " s")
         check_range("pipeline.swing_retime_weight", self.swing_retime_weight, 0.0, 1.0)
         check_range(
             "pipeline.swing_retime_max_shift_s", self.swing_retime_max_shift_s, 0.0, 0.5, " s"
@@ -193,6 +199,20 @@ class PipelineParams:
             raise ValueError("pipeline.marker_offset_m must be three numbers [m]")
         for value in self.marker_offset_m:
             check_range("pipeline.marker_offset_m", value, -0.3, 0.3, " m")
+
+    def swing_timing(self) -> dict[str, float]:
+        """The ``swing_*`` keys as the keyword arguments of
+        :func:`~gaitnet.pipeline.swing_fill.swing_fill` and
+        :func:`~gaitnet.pipeline.swing_fill.plan_swings`."""
+        return {
+            "span_offset_s": self.swing_span_offset_s,
+            "span_per_cycle": self.swing_span_per_cycle,
+            "span_contralateral_offset_s": self.swing_span_contralateral_offset_s,
+            "span_per_contralateral": self.swing_span_per_contralateral,
+            "retime_weight": self.swing_retime_weight,
+            "retime_max_shift_s": self.swing_retime_max_shift_s,
+            "start_delay_s": self.swing_start_delay_s,
+        }
 
 
 @dataclass(frozen=True)

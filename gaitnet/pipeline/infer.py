@@ -396,12 +396,9 @@ def reconstruct(
         geometry = ChainGeometry.build(skeleton, correction)
         filled = bridge_gaps(_foot_points(geometry, poses, trans), ~np.isnan(measured[:, :, 0]))
         if cfg.pipeline.gap_fill == "swing":
-            p = cfg.pipeline
             swing = swing_fill(
-                vio.t_s, measured, vio.stance_feet, height,
-                p.swing_span_offset_s, p.swing_span_per_cycle, p.swing_span_contralateral_offset_s,
-                p.swing_span_per_contralateral, p.swing_retime_weight, p.swing_retime_max_shift_s,
-            )  # fmt: skip
+                vio.t_s, measured, vio.stance_feet, height, **cfg.pipeline.swing_timing()
+            )
             filled = np.where(np.isnan(swing), filled, swing)
         use = ~np.isnan(filled[:, :, 0])
         if use.any():
