@@ -4,29 +4,37 @@ For each clip in the AMASS ``*_poses.npz`` format (real motion capture, e.g. the
 walks of the simulator's gait generator written in the same format), resampled to 30 frames/s:
 
 1. forward kinematics with the clip's rest joints (the built-in skeleton of ``--height`` when
-   the file has none; ``--height`` is also the body height the lift is scaled by) gives a
+   the file has none; ``--height`` is also the body height the template's lift and sideways
+   bow are scaled by) gives a
    mid-foot point per side, half-way between the ankle and the SMPL foot joint (the ball of
    the foot): the same point on every clip;
 2. the foot "rests" where that point's horizontal speed stays below ``--rest-speed`` for at
    least 3 frames; the rests stand in for the filter's stance landmarks and the point in the
    rest frames for the measured foot, everything between two rests is unseen;
-3. :func:`gaitnet.pipeline.swing_fill.swing_fill` fills the unseen frames, and the fill is
-   compared with the true point there. A straight line in time between the two rests (the
-   simplest fill) is scored beside it.
+3. :func:`gaitnet.pipeline.swing_fill.swing_fill` fills the unseen frames (the default
+   ``pipeline.swing_*`` keys, but ``--start-delay`` for ``pipeline.swing_start_delay_s``; with
+   ``--no-rest-bound`` the rests handed to it end at their first frame, so the swing's start
+   is the timing line's alone, never the rest's end: the rest frames stay measured and the
+   unseen frames the same), and the fill is compared with the true point there. A straight
+   line in time between the two rests (the simplest fill) is scored beside it.
 
     python benchmarks/bench_swing_fill.py REAL/*_poses.npz [--simulated 12]
+        [--start-delay S] [--no-rest-bound]
 
 (``REAL``: walking clips of the CMU Graphics Lab Motion Capture Database, mocap.cs.cmu.edu,
 in AMASS's SMPL+H G layout, as AMASS distributes them; docs/pipeline.md has the figures.)
 
-Prints the mean and 90th percentile of the fill's error per source, and the share of the
-cycle from the end of a rest to the start of the next (over one rest-to-rest cycle), to set
-beside the template's span (``pipeline.swing_span_offset_s + swing_span_per_cycle · cycle``).
+Prints the mean and 90th percentile of the fill's error per source, its mean sideways error
+and mean |sideways| error (horizontal, square to the foot's walking direction, + away from the
+body's midline), and the share of the cycle from the end of a rest to the start of the next
+(over one rest-to-rest cycle), to set beside the template's span
+(``pipeline.swing_span_offset_s + swing_span_per_cycle · cycle``).
 """
 
 from __future__ import annotations
 
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -58,7 +66,17 @@ def _rests(
     return [(a, b) for a, b in runs if b - a + 1 >= min_frames]
 
 
-def score_clip(path: Path, height_m: float, rest_speed: float) -> dict[str, list[float]]:
+def score_clip(
+    path: Path,
+    height_m: float,
+    rest_speed: float,
+    timing: dict[str, float] | None = None,
+    rest_bound: bool = True,
+) -> dict[str, list[float]]:
+    """Per unseen frame the fill's and the straight line's 3-D error and the fill's sideways
+    error (``fill``, ``line``, ``sideways``), per rest-to-rest cycle the unseen share
+    (``fraction``); ``timing``: :func:`swing_fill`'s keyword arguments (default: the config's);
+    ``rest_bound`` False: the rests end at their first frame for the fill (module docstring)."""
     clip = load_amass_clip(path, fps=FPS)
     skel = (
         from_rest_joints(clip.rest_joints)
@@ -67,7 +85,7 @@ def score_clip(path: Path, height_m: float, rest_speed: float) -> dict[str, list
     )
     J = forward_kinematics(skel, clip.root_orient, clip.trans, clip.joint_aa)
     t = np.arange(clip.n_frames) / FPS
-    out: dict[str, list[float]] = {"fill": [], "line": [], "fraction": []}
+    out: dict[str, list[float]] = {"fill": [], "line": [], "sideways": [], "fraction": []}
     measured = np.full((clip.n_frames, 2, 3), np.nan)
     stance: list[StanceFoot] = []
     truth = np.empty((clip.n_frames, 2, 3))
@@ -78,14 +96,20 @@ def score_clip(path: Path, height_m: float, rest_speed: float) -> dict[str, list
         rests = _rests(speed, rest_speed)
         for a, b in rests:
             measured[a : b + 1, s] = p[a : b + 1]
-            stance.append(StanceFoot(len(stance), side, t[a], t[b], p[a, :2], np.zeros(2), 1))
+            last = t[b] if rest_bound else t[a]
+            stance.append(StanceFoot(len(stance), side, t[a], last, p[a, :2], np.zeros(2), 1))
         for (a0, b0), (a1, _) in zip(rests, rests[1:], strict=False):
             out["fraction"].append((t[a1] - t[b0]) / (t[a1] - t[a0]))
-    filled = swing_fill(t, measured, stance, height_m, **PipelineParams().swing_timing())
+    timing = PipelineParams().swing_timing() if timing is None else timing
+    filled = swing_fill(t, measured, stance, height_m, **timing)
     for s in range(2):
         unseen = np.isnan(measured[:, s, 0])
         use = unseen & np.isfinite(filled[:, s, 0])
-        out["fill"] += np.linalg.norm(filled[use, s] - truth[use, s], axis=1).tolist()
+        error = filled[use, s] - truth[use, s]
+        out["fill"] += np.linalg.norm(error, axis=1).tolist()
+        ahead = truth[-1, s, :2] - truth[0, s, :2]  # a straight walk's direction
+        outwards = np.array([-ahead[1], ahead[0]]) / np.hypot(*ahead) * (1 - 2 * s)
+        out["sideways"] += (error[:, :2] @ outwards).tolist()
         # the straight line in time between the neighbouring measured frames
         seen = np.flatnonzero(~unseen)
         line = np.stack(
@@ -111,16 +135,17 @@ def _simulated_clips(n: int, folder: Path, seed: int) -> list[Path]:
 
 
 def _report(name: str, scores: dict[str, list[float]]) -> None:
-    if not scores["fill"]:
+    if not scores.get("fill"):
         print(f"{name:10s} no swing between two rests was found")
         return
     fill, line = np.array(scores["fill"]), np.array(scores["line"])
-    frac = np.array(scores["fraction"])
+    sideways, frac = np.array(scores["sideways"]), np.array(scores["fraction"])
     print(
         f"{name:10s} {len(fill):5d} unseen frames: template fill {100 * fill.mean():.2f} cm "
-        f"(p90 {100 * np.percentile(fill, 90):.2f}), straight line {100 * line.mean():.2f} cm "
-        f"(p90 {100 * np.percentile(line, 90):.2f}); rest end → next rest start "
-        f"{frac.mean():.3f} ± {frac.std():.3f} of the cycle ({len(frac)} swings)"
+        f"(p90 {100 * np.percentile(fill, 90):.2f}; sideways {100 * sideways.mean():+.2f}, "
+        f"|sideways| {100 * np.abs(sideways).mean():.2f}), straight line "
+        f"{100 * line.mean():.2f} cm (p90 {100 * np.percentile(line, 90):.2f}); rest end → "
+        f"next rest start {frac.mean():.3f} ± {frac.std():.3f} of the cycle ({len(frac)} swings)"
     )
 
 
@@ -128,23 +153,41 @@ def main() -> None:
     ap = ScriptParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("clips", nargs="*", type=Path, help="AMASS *_poses.npz files (real motion)")
     ap.add_argument("--simulated", type=int, default=12, help="simulated walks to score too")
-    ap.add_argument("--height", type=float, default=1.75, help="body height for the lift [m]")
+    ap.add_argument(
+        "--height", type=float, default=1.75, help="body height for the lift and bow [m]"
+    )
     ap.add_argument("--rest-speed", type=float, default=0.15, help="rest below this [m/s]")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument(
+        "--start-delay", type=float, default=None,
+        help="pipeline.swing_start_delay_s for the fill [s] (default: the config's)",
+    )  # fmt: skip
+    ap.add_argument(
+        "--no-rest-bound", action="store_true",
+        help="the timing line alone sets each swing's start (not the rest's end)",
+    )  # fmt: skip
     args = ap.parse_args()
+    params = PipelineParams()
+    if args.start_delay is not None:
+        try:
+            params = replace(params, swing_start_delay_s=args.start_delay)
+        except ValueError as exc:  # out of the key's range
+            ap.error(f"--start-delay: {exc}")
+    timing = params.swing_timing()
+    sources = []
     if args.clips:
-        real: dict[str, list[float]] = {"fill": [], "line": [], "fraction": []}
-        for path in args.clips:
-            for key, values in score_clip(path, args.height, args.rest_speed).items():
-                real[key] += values
-        _report("real", real)
-    if args.simulated:
-        sim: dict[str, list[float]] = {"fill": [], "line": [], "fraction": []}
-        with tempfile.TemporaryDirectory() as tmp:
-            for path in _simulated_clips(args.simulated, Path(tmp), args.seed):
-                for key, values in score_clip(path, args.height, args.rest_speed).items():
-                    sim[key] += values
-        _report("simulated", sim)
+        sources.append(("real", list(args.clips)))
+    with tempfile.TemporaryDirectory() as tmp:
+        if args.simulated:
+            sources.append(("simulated", _simulated_clips(args.simulated, Path(tmp), args.seed)))
+        for name, paths in sources:
+            scores: dict[str, list[float]] = {}
+            for path in paths:
+                bound = not args.no_rest_bound
+                found = score_clip(path, args.height, args.rest_speed, timing, bound)
+                for key, values in found.items():
+                    scores.setdefault(key, []).extend(values)
+            _report(name, scores)
 
 
 if __name__ == "__main__":

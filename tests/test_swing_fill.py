@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from gaitnet.pipeline.swing_fill import (
+    MIN_SPAN_S,
     SWING_LIFT,
     SWING_PROGRESS,
     SWING_SIDEWAYS,
@@ -57,7 +58,7 @@ def _walk(
 
 def test_known_answer_at_heel_off_mid_swing_and_landing() -> None:
     # rest 1 at x = 0 from 0 to 0.6 s, rest 2 at x = 1.2 m from 1.2 s: cycle 1.2 s, the swing
-    # starts span(1.2) ≈ 0.82 s before the second foot flat → 0.38 s, clamped to the last rest
+    # starts span(1.2) ≈ 0.87 s before the second foot flat → 0.33 s, clamped to the last rest
     # frame 0.6 s
     t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)])
     out = swing_fill(t, measured, feet, H)
@@ -168,6 +169,12 @@ def test_the_other_foots_landing_times_the_swing() -> None:
     later = swing_fill(t, measured, feet + right, H, span_contralateral_offset_s=0.0)
     assert (later[k, 0, 0] <= out[k, 0, 0] + 1e-12).all()
     assert (later[k, 0, 0] < out[k, 0, 0] - 1e-6).any()
+    # and the start delay moves this line's start too
+    (_, second) = [p for p in plan_swings(t, measured, feet + right) if p.side == 0]
+    (_, delayed) = [
+        p for p in plan_swings(t, measured, feet + right, start_delay_s=0.05) if p.side == 0
+    ]
+    assert delayed.heel_off_s - second.heel_off_s == pytest.approx(0.05, abs=1e-12)
 
 
 @pytest.mark.parametrize(
@@ -216,6 +223,28 @@ def test_the_start_delay_moves_a_timed_start_and_not_a_rest_end() -> None:
     for d in (0.0, 0.1):
         (plan,) = plan_swings(t, measured, feet, start_delay_s=d)
         assert plan.heel_off_s == pytest.approx(0.6, abs=1e-12) and plan.from_rest_end
+    # the rest seen until 0.4 s: the line (1.2 − 0.875 = 0.325 s) lies before it, delayed by
+    # 0.1 s after it, and then the line sets the start
+    t, measured, feet = _walk([(0.0, 0.4, 0.0), (1.2, 2.0, 1.2)])
+    (plan,) = plan_swings(t, measured, feet, start_delay_s=0.0)
+    assert plan.heel_off_s == pytest.approx(0.4, abs=1e-12) and plan.from_rest_end
+    (plan,) = plan_swings(t, measured, feet, start_delay_s=0.1)
+    assert plan.heel_off_s == pytest.approx(1.2 - _line(1.2) + 0.1, abs=1e-12)
+    assert not plan.from_rest_end
+
+
+def test_a_swing_starts_before_it_lands() -> None:
+    # keys that lay the shortest line (0.15 s at a 0.5 s cycle) 0.2 s later would start the
+    # swing after its landing: it starts MIN_SPAN_S before it
+    t, measured, feet = _walk([(0.0, 0.05, 0.0), (0.5, 1.0, 0.6)])
+    keys = {"span_offset_s": 0.0, "span_per_cycle": 0.3, "start_delay_s": 0.2}
+    (plan,) = plan_swings(t, measured, feet, **keys)
+    assert plan.heel_off_s == pytest.approx(0.5 - MIN_SPAN_S, abs=1e-12)
+    out = swing_fill(t, measured, feet, H, **keys)
+    k = np.flatnonzero(np.isfinite(out[:, 0, 0]))[-1]  # the last frame before the landing
+    start = 0.5 - MIN_SPAN_S
+    expected = 0.6 * np.interp((t[k] - start) / MIN_SPAN_S, SWING_TAU, SWING_PROGRESS)
+    assert out[k, 0, 0] == pytest.approx(expected, abs=1e-12) and expected > 0.01  # it moves
 
 
 def test_the_span_is_a_smaller_share_of_a_longer_cycle() -> None:

@@ -38,7 +38,8 @@ walking foot has a stereotyped shape, which this module lays between the two res
   sessions 0.05 s lowers the filled frames' error, on real walks (the CMU walks of
   ``benchmarks/bench_swing_fill.py``) it raises it, because the generator's swings start
   later against the next foot flat than real ones (docs/pipeline.md, *The start delay*);
-  never before the last frame the filter saw the foot resting;
+  never before the last frame the filter saw the foot resting, and at least
+  :data:`MIN_SPAN_S` before the landing;
 - ``ρ`` (0 → 1, :data:`SWING_PROGRESS`), ``λ`` (:data:`SWING_LIFT`) and ``μ``
   (:data:`SWING_SIDEWAYS`; ``λ``, ``μ`` fractions of the body height ``H``): the mean path of
   the instep marker from heel off to the next foot flat over the simulator's walks at
@@ -90,6 +91,7 @@ __all__ = [
     "CYCLE_TOLERANCE",
     "MAX_STRIDE_M",
     "MIN_REFERENCES",
+    "MIN_SPAN_S",
     "MIN_STRIDE_M",
     "STRIDE_OUTLIER",
     "SWING_LIFT",
@@ -138,6 +140,7 @@ CYCLE_TOLERANCE = 0.25  # a cycle further than this from the typical one is not 
 STRIDE_OUTLIER = 1.5  # a stride this many times the typical one spans a missed landmark
 MIN_REFERENCES = 3  # pairs (other than each foot's first) needed for a typical cycle
 MIN_STRIDE_M = 0.2  # shorter: a shuffle or one stance seen as two, not a swing
+MIN_SPAN_S = 0.05  # a swing's start lies at least this long before its landing [s]
 MAX_STRIDE_M = 2.2  # longer than any walking stride
 
 
@@ -155,7 +158,7 @@ class _Swing:
 
     @property
     def stride_m(self) -> float:
-        return float(np.hypot(*(self.p1 - self.p0)[:2]))
+        return _step_xy(self.p0, self.p1)[1]
 
 
 @dataclass(frozen=True)
@@ -232,7 +235,8 @@ def plan_swings(
             and CONTRALATERAL_SHARE[0] * cycle <= to_landing <= CONTRALATERAL_SHARE[1] * cycle
         ):
             span_s = span_contralateral_offset_s + span_per_contralateral * to_landing
-        timed = w.after.t_first_s - span_s + start_delay_s
+        landing = w.after.t_first_s
+        timed = min(landing - span_s + start_delay_s, landing - MIN_SPAN_S)
         window = (t_s > w.before.t_last_s) & (t_s < w.after.t_first_s) & ~seen[:, w.side]
         if not window.any():
             continue
@@ -242,13 +246,14 @@ def plan_swings(
             if np.isfinite(seen_again):
                 shift = np.clip(seen_again - heel_off, -retime_max_shift_s, retime_max_shift_s)
                 heel_off += retime_weight * float(shift)
+        heel_off = min(heel_off, landing - MIN_SPAN_S)
         plans.append(
             SwingPlan(
                 side=w.side,
                 p0=w.p0,
                 p1=w.p1,
                 heel_off_s=heel_off,
-                landing_s=w.after.t_first_s,
+                landing_s=landing,
                 first=w.first,
                 from_rest_end=w.before.t_last_s > timed,
                 window=window,
@@ -287,7 +292,7 @@ def swing_fill(
         span = max(w.landing_s - w.heel_off_s, 1e-6)
         tau = np.clip((t_s[w.window] - w.heel_off_s) / span, 0.0, 1.0)
         rho = np.interp(tau, SWING_TAU, SWING_PROGRESS)
-        ahead = (w.p1 - w.p0)[:2] / np.linalg.norm((w.p1 - w.p0)[:2])
+        ahead, _ = _step_xy(w.p0, w.p1)
         outwards = np.array([-ahead[1], ahead[0], 0.0]) * (1.0 if w.side == 0 else -1.0)
         sideways = np.interp(tau, SWING_TAU, SWING_SIDEWAYS) * body_height_m
         out[w.window, w.side] = w.p0 + rho[:, None] * (w.p1 - w.p0) + sideways[:, None] * outwards
@@ -302,16 +307,23 @@ def _seen_again_start(
     (module docstring): at each steadily seen frame after ``heel_off_s`` whose measured
     progress along ``p₀ → p₁`` lies in :data:`RETIME_PROGRESS`, the template's τ at that
     progress gives the start for the landing fixed; their median (NaN where there is none)."""
-    ahead = (swing.p1 - swing.p0)[:2]
-    length = float(np.linalg.norm(ahead))
+    ahead, length = _step_xy(swing.p0, swing.p1)
     landing = swing.after.t_first_s
     frames = np.flatnonzero(seen & (t_s > heel_off_s) & (t_s < landing))
-    progress = (points[frames, :2] - swing.p0[:2]) @ ahead / length**2
+    progress = (points[frames, :2] - swing.p0[:2]) @ ahead / length
     use = (progress >= RETIME_PROGRESS[0]) & (progress <= RETIME_PROGRESS[1])
     if not use.any():
         return float("nan")
     tau = np.interp(progress[use], SWING_PROGRESS, SWING_TAU)
     return float(np.median((t_s[frames[use]] - tau * landing) / (1.0 - tau)))
+
+
+def _step_xy(p0: np.ndarray, p1: np.ndarray) -> tuple[np.ndarray, float]:
+    """The horizontal unit vector (2,) from ``p0`` to ``p1`` and the horizontal distance [m]
+    (a swing's stride: at least :data:`MIN_STRIDE_M`)."""
+    d = (p1 - p0)[:2]
+    length = float(np.hypot(d[0], d[1]))
+    return d / length, length
 
 
 def _after_other_landing(swing: _Swing, rests: Sequence[Stance]) -> float:
