@@ -192,8 +192,12 @@ def plan_swings(
     retime_max_shift_s: float = SWING_RETIME_MAX_SHIFT_S,
     start_delay_s: float = SWING_START_DELAY_S,
 ) -> list[SwingPlan]:
-    """The swings :func:`swing_fill` fills (arguments as there): the left foot's in time order,
-    then the right foot's."""
+    """The swings :func:`swing_fill` fills: the left foot's in time order, then the right
+    foot's. ``t_s`` (n,) frame times, ``measured`` (n, 2, 3) the measured foot points (left,
+    right; NaN where not seen), ``stance_feet`` the filter's landmarks (a stance reported
+    twice is made one first, :func:`gaitnet.vio.gait.merge_split_stances`); the timing keys
+    as in the module docstring (``pipeline.swing_*``), ``span_per_contralateral`` 0 timing
+    every swing by its cycle alone."""
     t_s = np.asarray(t_s, dtype=np.float64)
     measured = np.asarray(measured, dtype=np.float64)
     if measured.shape != (len(t_s), 2, 3):
@@ -267,26 +271,14 @@ def swing_fill(
     measured: np.ndarray,
     stance_feet: Sequence[StanceFoot],
     body_height_m: float,
-    span_offset_s: float = SWING_SPAN_OFFSET_S,
-    span_per_cycle: float = SWING_SPAN_PER_CYCLE,
-    span_contralateral_offset_s: float = SWING_SPAN_CONTRALATERAL_OFFSET_S,
-    span_per_contralateral: float = SWING_SPAN_PER_CONTRALATERAL,
-    retime_weight: float = SWING_RETIME_WEIGHT,
-    retime_max_shift_s: float = SWING_RETIME_MAX_SHIFT_S,
-    start_delay_s: float = SWING_START_DELAY_S,
+    **timing: float,
 ) -> np.ndarray:
     """Foot points (n, 2, 3) for the unseen frames of each foot's swings (module docstring),
     NaN elsewhere. ``t_s`` (n,) frame times, ``measured`` (n, 2, 3) the measured foot points
-    (left, right; NaN where not seen), ``stance_feet`` the filter's landmarks (a stance
-    reported twice is made one first, :func:`gaitnet.vio.gait.merge_split_stances`);
-    ``span_per_contralateral`` 0 times every swing by its cycle alone. Where and when each
-    swing is laid: :func:`plan_swings`."""
+    (left, right; NaN where not seen), ``stance_feet`` the filter's landmarks, ``timing`` the
+    keyword arguments of :func:`plan_swings`, which lays each swing."""
     t_s = np.asarray(t_s, dtype=np.float64)
-    plans = plan_swings(
-        t_s, measured, stance_feet, span_offset_s, span_per_cycle,
-        span_contralateral_offset_s, span_per_contralateral, retime_weight, retime_max_shift_s,
-        start_delay_s,
-    )  # fmt: skip
+    plans = plan_swings(t_s, measured, stance_feet, **timing)
     out = np.full((len(t_s), 2, 3), np.nan)
     for w in plans:
         span = max(w.landing_s - w.heel_off_s, 1e-6)
