@@ -36,24 +36,27 @@ def _cv2_rgb(decoded: np.ndarray, channels: int) -> np.ndarray:
 
 
 # OpenCV expands grey + alpha to BGRA; Pillow checks that kind
+@pytest.mark.parametrize("compress", [True, False])
 @pytest.mark.parametrize(("shape", "dtype"), [k for k in KINDS if k[0][2:] != (2,)])
-def test_round_trip_through_opencv(shape, dtype) -> None:
+def test_round_trip_through_opencv(shape, dtype, compress) -> None:
     rng = np.random.default_rng(7)
     # noise, constant runs and the extremes, where the Average filter's sums overflow a byte
     image = rng.integers(0, np.iinfo(dtype).max + 1, shape, dtype=dtype)
     image[: shape[0] // 2, : max(1, shape[1] // 3)] = np.iinfo(dtype).max
     image[-1, -1] = 0
-    decoded = cv2.imdecode(np.frombuffer(encode_png(image), np.uint8), cv2.IMREAD_UNCHANGED)
+    png = encode_png(image, compress=compress)
+    decoded = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_UNCHANGED)
     channels = 1 if image.ndim == 2 else shape[2]
     np.testing.assert_array_equal(_cv2_rgb(decoded, channels), image)
 
 
+@pytest.mark.parametrize("compress", [True, False])
 @pytest.mark.parametrize(
     ("shape", "dtype"), [k for k in KINDS if k[1] == np.uint8 or len(k[0]) == 2]
 )
-def test_round_trip_through_pillow(shape, dtype) -> None:
+def test_round_trip_through_pillow(shape, dtype, compress) -> None:
     image = np.random.default_rng(8).integers(0, np.iinfo(dtype).max + 1, shape, dtype=dtype)
-    decoded = np.asarray(Image.open(io.BytesIO(encode_png(image))))
+    decoded = np.asarray(Image.open(io.BytesIO(encode_png(image, compress=compress))))
     np.testing.assert_array_equal(decoded.astype(dtype), image)
 
 
@@ -99,6 +102,23 @@ def test_every_row_has_the_kinds_filter(shape, dtype, row_filter) -> None:
     stride = 1 + image[0].nbytes
     assert len(rows) == shape[0] * stride
     assert {rows[k * stride] for k in range(shape[0])} == {row_filter}
+
+
+@pytest.mark.parametrize(("shape", "dtype"), [((40, 30, 3), np.uint8), ((40, 30), np.uint16)])
+def test_uncompressed_rows_are_the_raw_bytes_stored(shape, dtype) -> None:
+    """compress=False: no row filter, the image's own bytes (16-bit big-endian) in stored
+    deflate blocks, so the file is the raw image plus a few bytes per row and block."""
+    image = np.random.default_rng(6).integers(0, np.iinfo(dtype).max + 1, shape, dtype=dtype)
+    png = encode_png(image, compress=False)
+    rows = _rows(png)
+    raw = image.astype(">u2").tobytes() if dtype == np.uint16 else image.tobytes()
+    stride = 1 + len(raw) // shape[0]
+    assert b"".join(rows[k * stride + 1 : (k + 1) * stride] for k in range(shape[0])) == raw
+    assert {rows[k * stride] for k in range(shape[0])} == {0}
+    assert len(raw) < len(png) < len(raw) + shape[0] + 100
+    ramp = np.add.outer(np.arange(shape[0]), np.arange(shape[1])).astype(dtype)
+    smooth = np.broadcast_to(ramp.reshape(ramp.shape + (1,) * (len(shape) - 2)), shape)
+    assert len(encode_png(smooth)) < len(encode_png(smooth, compress=False)) // 2
 
 
 def test_views_encode_as_their_values() -> None:

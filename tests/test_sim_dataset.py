@@ -97,6 +97,25 @@ def test_dataset_files_match_simulate_frame_and_labelme(tmp_path: Path) -> None:
     assert "--seed 7 --n 3 --labelme" in text.splitlines()[0]
 
 
+def test_output_compress_frames_deflates_images_and_depth_only(tmp_path: Path) -> None:
+    """Same pixels either way; compressed colour and depth files are smaller, labels equal."""
+    roots = {
+        flag: simulate_dataset(tiny(f"output.compress_frames={flag}"), 1, 2, tmp_path / flag).path
+        for flag in ("true", "false")
+    }
+    for got, want in zip(
+        frame_pixels(roots["true"], "000000"), frame_pixels(roots["false"], "000000"), strict=True
+    ):
+        np.testing.assert_array_equal(got, want)
+    for sub in ("images", "depth"):
+        small, large = ((roots[f] / sub / "000000.png").stat().st_size for f in ("true", "false"))
+        assert small < 0.8 * large, sub
+    for sub in ("labels", "instances"):
+        assert (roots["true"] / sub / "000000.png").read_bytes() == (
+            roots["false"] / sub / "000000.png"
+        ).read_bytes()
+
+
 def test_pitch_range_argument_replaces_mount_pitch_and_is_recorded(tmp_path: Path) -> None:
     cfg = tiny("mount.pitch_deg=80", "output.preview_frames=0")
     root = simulate_dataset(cfg, 4, 1, tmp_path / "ds", pitch_range_deg=(40.0, 45.0)).path

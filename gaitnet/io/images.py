@@ -115,40 +115,45 @@ def _png_chunk(kind: bytes, data: bytes) -> bytes:
     )
 
 
-def _filtered_rows(image: np.ndarray) -> tuple[np.ndarray, int]:
+def _filtered_rows(image: np.ndarray, compress: bool = True) -> tuple[np.ndarray, int]:
     """The PNG scanlines of ``image`` (H, W[, C]) with one fixed filter, a filter-type byte in
     front of each row; also the deflate strategy that suits the filter.
 
     8-bit colour: Average (each byte minus the floor-mean of the byte one pixel left and the
     byte above, both unfiltered) with Huffman-only coding (camera noise leaves few repeats for
     LZ77 to find); 16-bit: Up (big-endian bytes minus those above), Huffman-only; 8-bit
-    single-channel (label maps): no filter, run-length coding (long runs of one value)."""
+    single-channel (label maps) and anything not to ``compress``: no filter, run-length coding
+    (long runs of one value; unused when the rows are stored)."""
     height = image.shape[0]
     channels = 1 if image.ndim == 2 else image.shape[2]
     if image.dtype == np.uint16:
         raw = image.astype(">u2").view(np.uint8).reshape(height, -1)
+    else:
+        raw = image.reshape(height, -1)
+    if not compress or (image.dtype == np.uint8 and channels == 1):
+        body, kind, strategy = raw, _FILTER_NONE, zlib_ng.Z_RLE
+    elif image.dtype == np.uint16:
         kind, strategy = _FILTER_UP, zlib_ng.Z_HUFFMAN_ONLY
         body = raw.copy()
         body[1:] -= raw[:-1]
-    elif channels > 1:
-        raw = image.reshape(height, -1)
+    else:
         kind, strategy = _FILTER_AVERAGE, zlib_ng.Z_HUFFMAN_ONLY
         pair = np.zeros(raw.shape, np.uint16)
         pair[:, channels:] = raw[:, :-channels]
         pair[1:] += raw[:-1]
         pair >>= 1
         body = raw - pair.astype(np.uint8)
-    else:
-        body, kind, strategy = image.reshape(height, -1), _FILTER_NONE, zlib_ng.Z_RLE
     rows = np.empty((height, body.shape[1] + 1), np.uint8)
     rows[:, 0] = kind
     rows[:, 1:] = body
     return rows, strategy
 
 
-def encode_png(image: np.ndarray) -> bytes:
+def encode_png(image: np.ndarray, compress: bool = True) -> bytes:
     """Lossless, deterministic PNG bytes of a uint8/uint16 image of 1–4 channels (colour given
-    as RGB[A]).
+    as RGB[A]); not ``compress``: the rows stored unfiltered in uncompressed deflate blocks
+    (as large as the raw image, like a RealSense recording, but about ten times faster to
+    write and to read: docs/benchmarks.md).
 
     One fixed row filter per image kind (:func:`_filtered_rows`) and zlib-ng's deflate at
     level 3, about twice as fast as libpng with zlib for the same files (docs/benchmarks.md);
@@ -158,8 +163,8 @@ def encode_png(image: np.ndarray) -> bytes:
     channels = 1 if image.ndim == 2 else (image.shape[2] if image.ndim == 3 else 0)
     if image.dtype not in (np.uint8, np.uint16) or channels not in _COLOUR_TYPE or 0 in image.shape:
         raise ValueError(f"cannot encode a {image.dtype} {image.shape} image as PNG")
-    rows, strategy = _filtered_rows(image)
-    deflate = zlib_ng.compressobj(3, zlib_ng.DEFLATED, 15, 8, strategy)
+    rows, strategy = _filtered_rows(image, compress)
+    deflate = zlib_ng.compressobj(3 if compress else 0, zlib_ng.DEFLATED, 15, 8, strategy)
     data = deflate.compress(rows) + deflate.flush()
     height, width = image.shape[:2]
     bit_depth = 16 if image.dtype == np.uint16 else 8

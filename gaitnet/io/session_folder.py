@@ -198,7 +198,8 @@ class SessionWriter:
     :class:`~gaitnet.errors.SessionError` naming the output folder; an output path that is a
     file, or a non-empty folder without ``overwrite``, raises
     :class:`~gaitnet.errors.InputError`. Non-finite or non-positive depths are written as 0
-    (invalid), as the format defines.
+    (invalid), as the format defines. ``compress_frames=False`` writes the colour and depth
+    PNGs uncompressed (:func:`gaitnet.io.images.encode_png`).
     """
 
     def __init__(
@@ -207,12 +208,14 @@ class SessionWriter:
         calibration: SessionCalibration,
         overwrite: bool = False,
         encode_threads: int = 1,
+        compress_frames: bool = True,
     ):
         if not isinstance(calibration, SessionCalibration):
             raise TypeError(f"calibration must be SessionCalibration, got {calibration!r}")
         self.root = Path(root)
         self.calibration = calibration
         self.overwrite = overwrite
+        self.compress_frames = compress_frames
         self._stage = StagedFolder(self.root, overwrite)
         self.staging = self._stage.path
         self._pool: ThreadPoolExecutor | None = None
@@ -254,22 +257,25 @@ class SessionWriter:
                 f"frame timestamps must increase (t_ns={t_ns} after {self._times[-1]})"
             )
         name = f"{t_ns}.png"
-        self.write_png(self.staging / "color" / name, rgb.copy())
+        self.write_png(self.staging / "color" / name, rgb.copy(), self.compress_frames)
         units = depth_to_units(depth_m, self.calibration.depth_scale_m)
-        self.write_png(self.staging / "depth" / name, units)
+        self.write_png(self.staging / "depth" / name, units, self.compress_frames)
         self._times.append(t_ns)
 
-    def write_png(self, path: Path, image: np.ndarray) -> None:
-        """Encode and write ``image`` (not modified afterwards by the caller) in the background.
+    def write_png(self, path: Path, image: np.ndarray, compress: bool = True) -> None:
+        """Encode and write ``image`` (not modified afterwards by the caller) in the background
+        (``compress``: :func:`gaitnet.io.images.encode_png`).
 
         PNG encoding releases the GIL, so with ``encode_threads`` ≥ 1 it overlaps with the
         caller's work; errors surface at the next call or at :meth:`close`.
         """
         self._raise_failures(block=False)
         if self._pool is None:
-            path.write_bytes(encode_png(image))
+            path.write_bytes(encode_png(image, compress))
             return
-        self._pending.append(self._pool.submit(lambda: path.write_bytes(encode_png(image))))
+        self._pending.append(
+            self._pool.submit(lambda: path.write_bytes(encode_png(image, compress)))
+        )
 
     def _raise_failures(self, block: bool) -> None:
         still = []

@@ -232,9 +232,10 @@ def simulate_dataset(
             frame = simulate_frame(cfg, seed, i)
             label, instance = frame.render.label, frame.render.instance
             name = f"{i:06d}"
-            (staging / "images" / f"{name}.png").write_bytes(encode_png(frame.rgb))
+            compress = cfg.output.compress_frames
+            (staging / "images" / f"{name}.png").write_bytes(encode_png(frame.rgb, compress))
             (staging / "depth" / f"{name}.png").write_bytes(
-                encode_png(depth_to_units(frame.depth_m, DEPTH_SCALE_M))
+                encode_png(depth_to_units(frame.depth_m, DEPTH_SCALE_M), compress)
             )
             (staging / "labels" / f"{name}.png").write_bytes(encode_png(label))
             (staging / "instances" / f"{name}.png").write_bytes(encode_png(instance))

@@ -159,7 +159,9 @@ def simulate_session(
     preview_idx = preview_frames(times, cfg)
     preview_rows, captions, checks = [], [], []
     exposures = np.zeros((len(times), 2))
-    writer = SessionWriter(out_dir, calibration, overwrite=overwrite)
+    writer = SessionWriter(
+        out_dir, calibration, overwrite=overwrite, compress_frames=cfg.output.compress_frames
+    )
     try:
         gt = GroundTruthWriter(writer.staging / "groundtruth", cfg.output.labels, writer.write_png)
         # closing(): on an interrupt the worker pool stops here, before the error propagates
