@@ -14,6 +14,7 @@ LAYERS = {
     "errors": 0,
     "checks": 1,
     "config": 1,
+    "filters": 1,
     "geometry": 1,
     "io": 2,
     "evaluation": 3,

@@ -50,9 +50,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import butter, filtfilt
 
 from gaitnet.errors import InputError
+from gaitnet.filters import butterworth2_lowpass, filtfilt2
 from gaitnet.vio.gait import Stance
 
 __all__ = [
@@ -146,8 +146,8 @@ def _lowpass(values: FloatArray, dt: float, cutoff_hz: float) -> FloatArray:
     if cutoff_hz <= 0 or cutoff_hz >= 0.8 * nyquist:
         log.info("gait events: no low-pass (cut-off %.1f Hz, Nyquist %.1f Hz)", cutoff_hz, nyquist)
         return values
-    b, a = butter(2, cutoff_hz / nyquist)
-    return filtfilt(b, a, values, axis=0, padlen=min(3 * max(len(a), len(b)), len(values) - 1))
+    b, a = butterworth2_lowpass(cutoff_hz / nyquist)
+    return filtfilt2(b, a, values, padlen=min(3 * len(a), len(values) - 1))
 
 
 def _still_intervals(

@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from gaitnet.filters import lfilter2
 from gaitnet.geometry import make_T, so3_exp, so3_right_jacobian
 from gaitnet.sim.scene import SIDES
 
@@ -161,31 +162,15 @@ def spring_response(u: np.ndarray, gain: float, w: float, zeta: float, fs: float
     from rest: the bilinear (Tustin) transform of ``−γ / (s² + 2ζωs + ω²)``, i.e. ``s = k (z −
     1) / (z + 1)``, ``k = 2 fs``, run as its difference equation along axis 0.
 
-    Written out rather than taken from ``scipy.signal`` (``bilinear`` + ``lfilter`` give the
-    same numbers; a test compares them): importing ``scipy.signal`` pulls in ``scipy.stats``,
-    0.6 s on the critical path of every ``gaitnet simulate`` run.
+    Written out rather than taken from ``scipy.signal`` (``bilinear`` gives the same
+    coefficients; a test compares them): :mod:`gaitnet.filters` runs the difference equation.
     """
     u = np.asarray(u, np.float64)
-    if len(u) == 0:
-        return u.copy()
     k = 2.0 * fs
     a0 = k * k + 2 * zeta * w * k + w * w
-    a1 = (2 * w * w - 2 * k * k) / a0
-    a2 = (k * k - 2 * zeta * w * k + w * w) / a0
-    drive = -gain / a0 * u  # numerator −γ (1 + z⁻¹)²
-    drive[1:] += 2 * (-gain / a0) * u[:-1]
-    drive[2:] += -gain / a0 * u[:-2]
-    flat = drive.reshape(len(drive), -1)
-    out = np.empty_like(flat)
-    for j in range(flat.shape[1]):  # the recursion on Python floats
-        y1 = y2 = 0.0
-        column = []
-        for v in flat[:, j].tolist():
-            y = v - a1 * y1 - a2 * y2
-            column.append(y)
-            y1, y2 = y, y1
-        out[:, j] = column
-    return out.reshape(u.shape)
+    a = [1.0, (2 * w * w - 2 * k * k) / a0, (k * k - 2 * zeta * w * k + w * w) / a0]
+    b = [-gain / a0, -2 * gain / a0, -gain / a0]  # numerator −γ (1 + z⁻¹)²
+    return lfilter2(b, a, u)
 
 
 def build_mount_motion(
