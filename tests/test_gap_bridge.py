@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gaitnet.pipeline.gap_bridge import bridge_gaps, gaps
+from gaitnet.pipeline.gap_bridge import bridge_gaps, frames_to_bridge, gaps
 
 
 def test_gaps_are_the_runs_bounded_on_both_sides() -> None:
@@ -72,8 +72,10 @@ def test_unbounded_gaps_are_left_alone_and_bad_shapes_refused() -> None:
 def test_gap_fill_key_acts(tiny_sim_session: Path, monkeypatch) -> None:
     """With ``pipeline.gap_fill: bridge`` the correction runs twice, the second time with the
     gap frames measured at the bridged points and the seen frames as they were; the result
-    still flags the gap frames as filled. With ``none``, once. With ``swing``, the second pass
-    takes the swing fill where it gives a point and the bridge elsewhere."""
+    still flags the gap frames as filled. The first pass stops where the bridges need it no
+    more (:func:`frames_to_bridge`). With ``none``, once. With ``swing``, the second pass
+    takes the swing fill where it gives a point and the bridge elsewhere; a swing fill that
+    covers every gap leaves only the second pass."""
     import gaitnet.pipeline.infer as infer
     from gaitnet.config import load_config
     from gaitnet.io import open_session
@@ -122,6 +124,9 @@ def test_gap_fill_key_acts(tiny_sim_session: Path, monkeypatch) -> None:
     assert len(calls) == 2
     first = np.array([m.foot_W for m in calls[0]])
     second = np.array([m.foot_W for m in calls[1]])
+    assert len(first) == 32 and len(second) == len(obs.foot_W)  # the gap ends at frame 30
+    np.testing.assert_array_equal(first, obs.foot_W[:32])
+    first = obs.foot_W
     gap = np.isnan(first[:, 1, 0])
     assert gap.sum() == 10
     assert np.isfinite(second).all()
@@ -130,8 +135,8 @@ def test_gap_fill_key_acts(tiny_sim_session: Path, monkeypatch) -> None:
     # are the correction's measured points (near the measurements where the foot is seen; the
     # reported shoe marker lies 4 cm behind them on this body)
     ((points, out),) = bridged
-    np.testing.assert_array_equal(second[gap, 1], out[gap, 1])
-    near = np.linalg.norm(points[~gap, 1] - first[~gap, 1], axis=1)
+    np.testing.assert_array_equal(second[gap, 1], out[gap[:32], 1])
+    near = np.linalg.norm(points[~gap[:32], 1] - first[:32][~gap[:32], 1], axis=1)
     assert np.median(near) < 0.02
     np.testing.assert_array_equal(on.foot_measured, off.foot_measured)
     assert not on.foot_measured[gap, 1].any()
@@ -181,6 +186,47 @@ def test_gap_fill_key_acts(tiny_sim_session: Path, monkeypatch) -> None:
     rest = k[len(k) // 2 :]
     np.testing.assert_array_equal(second[rest, 1], out[rest, 1])
     np.testing.assert_array_equal(second[~gap], first[~gap])
+
+    # a swing fill of the whole gap: nothing to bridge, so no first pass
+    half = k
+    calls.clear()
+    bridged.clear()
+    whole = infer.reconstruct(obs, load_config(InferConfig, None, keys), predictor)
+    assert len(calls) == 1 and not bridged
+    only = np.array([m.foot_W for m in calls[0]])
+    np.testing.assert_array_equal(only[k, 1], np.broadcast_to(marker, (len(k), 3)))
+    np.testing.assert_array_equal(only[~gap], first[~gap])
+    assert np.isfinite(whole.poses).all() and len(whole.poses) == len(first)
+
+
+def test_frames_to_bridge_is_where_the_first_pass_may_stop() -> None:
+    """Known answers, and on random masks the bridges over the frames it gives equal the
+    bridges over the whole session at every frame of a gap that ``covered`` leaves open."""
+    m = np.array([1, 1, 0, 0, 1, 1, 0, 0, 0, 1, 1, 1], bool)[:, None]  # gaps (2, 4), (6, 9)
+    assert frames_to_bridge(m) == 11
+    covered = np.zeros_like(m)
+    covered[6:9] = True
+    assert frames_to_bridge(m, covered) == 6  # through frame 5, after the first gap's end 4
+    covered[2:4] = True
+    assert frames_to_bridge(m, covered) == 0
+    assert frames_to_bridge(np.ones((5, 2), bool)) == 0
+    assert frames_to_bridge(np.array([1, 1, 0, 1, 1], bool)[:, None]) == 5  # all frames
+    with pytest.raises(ValueError, match="frames_to_bridge"):
+        frames_to_bridge(m, covered[:5])
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        n = int(rng.integers(3, 40))
+        measured = rng.random((n, 2)) < 0.6
+        covered = (rng.random((n, 2)) < 0.5) & ~measured
+        points = rng.normal(size=(n, 2, 3)).cumsum(axis=0)
+        k = frames_to_bridge(measured, covered)
+        full = bridge_gaps(points, measured)
+        part = bridge_gaps(points[:k], measured[:k])
+        for s in range(2):
+            for a, b in gaps(measured[:, s]):
+                if not covered[a:b, s].all():
+                    assert b < k
+                    np.testing.assert_array_equal(part[a:b, s], full[a:b, s])
 
 
 class _NoSegmenter:

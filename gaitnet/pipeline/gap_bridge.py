@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["bridge_gaps", "gaps", "steadily_seen"]
+__all__ = ["bridge_gaps", "frames_to_bridge", "gaps", "steadily_seen"]
 
 
 def steadily_seen(measured: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -78,3 +78,27 @@ def bridge_gaps(points: np.ndarray, measured: NDArray[np.bool_]) -> np.ndarray:
                 w = np.arange(1, len(steps) + 1) / len(steps)
             out[a:b, s] = path[1:] + w[:-1, None] * (points[b, s] - expected)
     return out
+
+
+def frames_to_bridge(measured: NDArray[np.bool_], covered: NDArray[np.bool_] | None = None) -> int:
+    """How many leading frames of the first pass :func:`bridge_gaps` needs for the gaps that
+    ``covered`` (n, S; e.g. the swing fill's frames) leaves a frame of: through the frame after
+    the frame ``b`` where the last such gap ends (that frame tells whether ``b`` is steadily
+    seen: :func:`steadily_seen`), at most all ``n``; 0 if there is no such gap. Over those
+    ``m`` frames, ``bridge_gaps(points[:m], measured[:m])`` equals ``bridge_gaps(points,
+    measured)`` at every frame of such a gap, so a caller that takes the ``covered`` frames
+    from elsewhere can stop the first pass there."""
+    measured = np.asarray(measured, dtype=bool)
+    covered = np.zeros(measured.shape, bool) if covered is None else np.asarray(covered, bool)
+    if covered.shape != measured.shape or measured.ndim != 2:
+        raise ValueError(
+            f"frames_to_bridge: measured and covered (n, S), got {measured.shape} and "
+            f"{covered.shape}"
+        )
+    ends = [
+        b
+        for s in range(measured.shape[1])
+        for a, b in gaps(measured[:, s])
+        if not covered[a:b, s].all()
+    ]
+    return min(max(ends) + 2, len(measured)) if ends else 0

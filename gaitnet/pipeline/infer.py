@@ -19,7 +19,8 @@
    frames measured: between two stance landmarks of the foot at a template swing from one
    rest to the next (``swing``, :mod:`gaitnet.pipeline.swing_fill`), elsewhere (and
    everywhere with ``bridge``) at the first pass's foot path bridged to where the foot is seen
-   again (:mod:`gaitnet.pipeline.gap_bridge`).
+   again (:mod:`gaitnet.pipeline.gap_bridge`); the first pass runs only as far as those
+   bridges need it (:func:`gaitnet.pipeline.gap_bridge.frames_to_bridge`).
 5. Forward kinematics give the joints, and the shoe markers (ankle plus the correction's marker
    offset) the gap-free foot trajectories: measured frames and frames filled in
    are flagged.
@@ -30,7 +31,7 @@ from __future__ import annotations
 import logging
 import time
 from collections import deque
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -45,7 +46,7 @@ from gaitnet.motion.onnx_runtime import OnnxPredictor
 from gaitnet.motion.skeleton import LowerBodySkeleton, builtin_skeleton, forward_kinematics
 from gaitnet.pipeline.config import REFERENCE_HEIGHT_M, InferConfig
 from gaitnet.pipeline.foot_points import FrameFeet, measure_feet
-from gaitnet.pipeline.gap_bridge import bridge_gaps
+from gaitnet.pipeline.gap_bridge import bridge_gaps, frames_to_bridge
 from gaitnet.pipeline.pelvis_extrinsic import (
     PelvisExtrinsic,
     complete_standing_feet,
@@ -378,38 +379,54 @@ def reconstruct(
         )
         for k in range(n)
     ]
-    measurements: Iterable = frames
-    wrap = bar("pose")
-    if wrap is not None:
-        measurements = wrap(measurements, n)
 
     def predict(window: np.ndarray) -> np.ndarray:
         return predictor.predict_future(window[None].astype(np.float32))[0].astype(np.float64)
 
     dt = 1.0 / TARGET_FPS  # the predictor's training rate: its window is resampled to it
-    first_pass: Sequence[FrameMeasurements] = measurements  # type: ignore[assignment]
-    corrected, _ = track_poses(predict, start, first_pass, skeleton, correction, vio.t_s, dt)
-    poses = np.stack([c.pose for c in corrected])
-    trans = np.stack([c.trans for c in corrected])
-    if cfg.pipeline.gap_fill != "none":
-        # the measured points' geometry, with the skeleton's lengths as the outputs below use
-        geometry = ChainGeometry.build(skeleton, correction)
-        filled = bridge_gaps(_foot_points(geometry, poses, trans), ~np.isnan(measured[:, :, 0]))
-        if cfg.pipeline.gap_fill == "swing":
-            swing = swing_fill(
-                vio.t_s, measured, vio.stance_feet, height, **cfg.pipeline.swing_timing()
-            )
-            filled = np.where(np.isnan(swing), filled, swing)
+
+    def track(stage: str, measurements: list[FrameMeasurements]) -> tuple[np.ndarray, ...]:
+        m = len(measurements)
+        wrap = bar(stage)
+        shown = measurements if wrap is None else wrap(measurements, m)  # track_poses iterates
+        corrected, _ = track_poses(
+            predict,
+            start,
+            shown,
+            skeleton,
+            correction,
+            vio.t_s[:m],
+            dt,  # type: ignore[arg-type]
+        )
+        return np.stack([c.pose for c in corrected]), np.stack([c.trans for c in corrected])
+
+    fill = cfg.pipeline.gap_fill
+    seen = ~np.isnan(measured[:, :, 0])
+    swing = np.full(measured.shape, np.nan)
+    if fill == "swing":
+        swing = swing_fill(
+            vio.t_s, measured, vio.stance_feet, height, **cfg.pipeline.swing_timing()
+        )
+    by_swing = ~np.isnan(swing[:, :, 0])
+    # the first pass only as far as the bridges of the second need it (none: it is the result)
+    m = frames_to_bridge(seen, by_swing) if fill != "none" else n
+    if m == 0 and not by_swing.any():
+        m = n  # nothing to fill in
+    if m > 0:
+        poses, trans = track("pose", frames[:m])
+    if fill != "none":
+        filled = swing.copy()
+        if m > 0:
+            # the measured points' geometry, with the skeleton's lengths as the outputs use
+            geometry = ChainGeometry.build(skeleton, correction)
+            bridged = bridge_gaps(_foot_points(geometry, poses, trans), seen[:m])
+            filled[:m] = np.where(by_swing[:m, :, None], swing[:m], bridged)
         use = ~np.isnan(filled[:, :, 0])
         if use.any():
             feet = np.where(use[:, :, None], filled, measured)
-            again: Iterable = [replace(m, foot_W=feet[k]) for k, m in enumerate(frames)]
-            wrap = bar("pose, gaps filled")
-            if wrap is not None:
-                again = wrap(again, n)
-            corrected, _ = track_poses(predict, start, again, skeleton, correction, vio.t_s, dt)
-            poses = np.stack([c.pose for c in corrected])
-            trans = np.stack([c.trans for c in corrected])
+            poses, trans = track(
+                "pose, gaps filled", [replace(f, foot_W=feet[k]) for k, f in enumerate(frames)]
+            )
     timings["pose"] = time.perf_counter() - t0
 
     aa = np.concatenate([poses[:, 3:].reshape(n, 6, 3), np.zeros((n, 2, 3))], axis=1)
