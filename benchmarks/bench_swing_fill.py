@@ -19,7 +19,7 @@ walks of the simulator's gait generator written in the same format), resampled t
    line in time between the two rests (the simplest fill) is scored beside it.
 
     python benchmarks/bench_swing_fill.py REAL/*_poses.npz [--simulated 12]
-        [--start-delay S] [--no-rest-bound]
+        [--start-delay S] [--no-rest-bound] [--camera-peak]
 
 (``REAL``: walking clips of the CMU Graphics Lab Motion Capture Database, mocap.cs.cmu.edu,
 in AMASS's SMPL+H G layout, as AMASS distributes them; docs/pipeline.md has the figures.)
@@ -29,6 +29,13 @@ and mean |sideways| error (horizontal, square to the foot's walking direction, +
 body's midline), and the share of the cycle from the end of a rest to the start of the next
 (over one rest-to-rest cycle), to set beside the template's span
 (``pipeline.swing_span_offset_s + swing_span_per_cycle · cycle``).
+
+With ``--camera-peak``, also where a camera worn on the pelvis is highest within each swing:
+a virtual camera at the simulator's mount offset (:data:`CAMERA_IN_PELVIS_M`, SMPL's root
+frame) moved by the clip's pelvis joint and root rotation; its height's highest frame between
+the end of one rest and the start of the next (refined by a parabola, interior maxima only),
+as a share τ of that interval: mean ± standard deviation per source and the range per clip
+(docs/pipeline.md, *The camera's highest point*).
 """
 
 from __future__ import annotations
@@ -39,6 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gaitnet.geometry import so3_exp
 from gaitnet.motion.amass import load_amass_clip
 from gaitnet.motion.skeleton import builtin_skeleton, forward_kinematics, from_rest_joints
 from gaitnet.pipeline.config import PipelineParams
@@ -49,6 +57,9 @@ from gaitnet.vio.result import StanceFoot
 
 FPS = 30.0
 ANKLES, FEET = (5, 6), (7, 8)  # joint order of gaitnet.motion.skeleton.SMPL_JOINT_INDICES
+CAMERA_IN_PELVIS_M = np.array([0.0, 0.05, 0.17])
+"""The simulator's camera (``mount.offset_m``: 0.17 m forward, 0.05 m up) in SMPL's root frame
+(x left, y up, z forward)."""
 
 
 def _rests(
@@ -119,6 +130,35 @@ def score_clip(
     return out
 
 
+def camera_peak_phases(path: Path, height_m: float, rest_speed: float) -> list[float]:
+    """Per swing between two rests of a foot, where the virtual camera is highest, as a share
+    of the time from the end of the first rest to the start of the next (module docstring)."""
+    clip = load_amass_clip(path, fps=FPS)
+    skel = (
+        from_rest_joints(clip.rest_joints)
+        if clip.rest_joints is not None
+        else builtin_skeleton(height_m)
+    )
+    J = forward_kinematics(skel, clip.root_orient, clip.trans, clip.joint_aa)
+    z = (J[:, 0] + so3_exp(clip.root_orient) @ CAMERA_IN_PELVIS_M)[:, 2]
+    phases = []
+    for s in range(2):
+        p = 0.5 * (J[:, ANKLES[s]] + J[:, FEET[s]])
+        speed = np.r_[np.inf, np.hypot(*np.diff(p[:, :2], axis=0).T) * FPS]
+        rests = _rests(speed, rest_speed)
+        for (_, b0), (a1, _) in zip(rests, rests[1:], strict=False):
+            inside = np.arange(b0 + 1, a1)
+            if len(inside) < 3:
+                continue
+            k = int(inside[np.argmax(z[inside])])
+            if k in (inside[0], inside[-1]):
+                continue
+            curve = z[k - 1] - 2 * z[k] + z[k + 1]
+            top = k + (0.5 * (z[k - 1] - z[k + 1]) / curve if curve < 0 else 0.0)
+            phases.append((top - b0) / (a1 - b0))
+    return phases
+
+
 def _simulated_clips(n: int, folder: Path, seed: int) -> list[Path]:
     from gaitnet.sim.amass_clips import walk_to_amass, write_amass_poses
     from gaitnet.sim.gait import GaitConfig, generate_walk
@@ -166,6 +206,10 @@ def main() -> None:
         "--no-rest-bound", action="store_true",
         help="the timing line alone sets each swing's start (not the rest's end)",
     )  # fmt: skip
+    ap.add_argument(
+        "--camera-peak", action="store_true",
+        help="also print where a pelvis-worn camera is highest within each swing",
+    )  # fmt: skip
     args = ap.parse_args()
     params = PipelineParams()
     if args.start_delay is not None:
@@ -188,6 +232,14 @@ def main() -> None:
                 for key, values in found.items():
                     scores.setdefault(key, []).extend(values)
             _report(name, scores)
+            if args.camera_peak:
+                per_clip = [camera_peak_phases(p, args.height, args.rest_speed) for p in paths]
+                every = np.concatenate([np.asarray(c, float) for c in per_clip])
+                ranges = ", ".join(f"{min(c):.2f}–{max(c):.2f}" for c in per_clip if c)
+                print(
+                    f"{name:10s} camera highest at τ {every.mean():.3f} ± {every.std():.3f} of "
+                    f"the rest end → next rest start ({len(every)} swings); per clip {ranges}"
+                )
 
 
 if __name__ == "__main__":

@@ -3,8 +3,9 @@ and zero-phase (forward-backward) filtering.
 
 They give ``scipy.signal``'s numbers (``butter(2, …)``, ``lfilter``, ``lfilter_zi``,
 ``filtfilt`` with odd padding; tests compare them) without its import: ``import scipy.signal``
-pulls in ``scipy.stats`` and takes 0.3–0.6 s, paid by every ``gaitnet infer`` (gait events) and
-``gaitnet simulate`` (the strap's spring) run for a few lines of arithmetic.
+pulls in ``scipy.stats`` and takes 0.3–0.6 s, which every ``gaitnet infer`` run (gait events)
+would pay for a few lines of arithmetic; the simulator's strap spring
+(:func:`gaitnet.sim.mount_dynamics.spring_response`) runs its difference equation here too.
 
 Arrays are filtered along axis 0 (time); other axes are independent signals.
 """
@@ -47,6 +48,8 @@ def lfilter2_zi(b: ArrayLike, a: ArrayLike) -> FloatArray:
     """The filter's state (2,) after a unit step held for ever: scaled by a signal's first
     value, it starts the filter without a transient (``scipy.signal.lfilter_zi``)."""
     (b0, b1, b2), (_, a1, a2) = _normalised(b, a)
+    if 1.0 + a1 + a2 == 0.0:
+        raise ValueError("a filter with a pole at z = 1 has no steady state")
     gain = (b0 + b1 + b2) / (1.0 + a1 + a2)  # the output in that steady state
     # the transposed direct form II's state at x = 1, y = gain (see lfilter2)
     return np.array([b1 + b2 - (a1 + a2) * gain, b2 - a2 * gain])
@@ -58,6 +61,8 @@ def lfilter2(b: ArrayLike, a: ArrayLike, x: ArrayLike, zi: ArrayLike | None = No
     from the state ``zi`` (2, …) broadcast against one sample of ``x``."""
     (b0, b1, b2), (_, a1, a2) = _normalised(b, a)
     x = np.asarray(x, np.float64)
+    if x.ndim == 0:
+        raise ValueError("lfilter2: x must have a time axis (axis 0)")
     if x.shape[0] == 0:
         return x.copy()
     flat = x.reshape(len(x), -1)
@@ -85,6 +90,8 @@ def filtfilt2(b: ArrayLike, a: ArrayLike, x: ArrayLike, padlen: int) -> FloatArr
     state of its first value, the extension cut off again. The magnitude response is the
     filter's squared, with no phase shift."""
     x = np.asarray(x, np.float64)
+    if x.ndim == 0 or len(x) == 0:
+        raise ValueError("filtfilt2: x must hold at least one sample along axis 0")
     if not 0 <= padlen < len(x):
         raise ValueError(f"padlen must be in [0, {len(x) - 1}] for {len(x)} samples, got {padlen}")
     ext = np.concatenate(

@@ -39,7 +39,13 @@ def test_a_bad_option_is_one_line(script: str) -> None:
 
 @pytest.mark.parametrize(
     "script",
-    ["bench_swing_fill.py", "bench_infer.py", "bench_segmenter_labels.py", "bench_swing_errors.py"],
+    [
+        "bench_swing_fill.py",
+        "bench_infer.py",
+        "bench_segmenter_labels.py",
+        "bench_swing_errors.py",
+        "bench_png.py",
+    ],
 )
 def test_a_missing_input_is_one_line(tmp_path: Path, script: str) -> None:
     missing = str(tmp_path / "missing")

@@ -57,6 +57,28 @@ def test_zero_phase_filtering_does_not_shift_a_peak() -> None:
     assert np.argmax(y) == 170 and y.max() < 1.0
 
 
-def test_padding_longer_than_the_signal_is_refused() -> None:
+def test_bad_signals_and_filters_are_refused() -> None:
+    b, a = butterworth2_lowpass(0.1)
     with pytest.raises(ValueError, match="padlen"):
-        filtfilt2(*butterworth2_lowpass(0.1), np.ones(5), padlen=5)
+        filtfilt2(b, a, np.ones(5), padlen=5)
+    with pytest.raises(ValueError, match="at least one sample"):
+        filtfilt2(b, a, np.ones(0), padlen=0)
+    with pytest.raises(ValueError, match="time axis"):
+        lfilter2(b, a, np.float64(1.0))
+    with pytest.raises(ValueError, match="pole at z = 1"):
+        lfilter2_zi([1.0, 0.0, 0.0], [1.0, -1.0, 0.0])
+    with pytest.raises(ValueError, match="3 coefficients"):
+        lfilter2([1.0, 2.0], a, np.ones(4))
+
+
+def test_gaitnet_infer_does_not_import_scipy_signal() -> None:
+    """What the module is for: the infer command's modules run without ``scipy.signal``."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, gaitnet.cli.commands, gaitnet.pipeline.infer, gaitnet.pipeline.outputs; "
+        "print('scipy.signal' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

@@ -187,6 +187,16 @@ def test_gap_fill_key_acts(tiny_sim_session: Path, monkeypatch) -> None:
     np.testing.assert_array_equal(second[rest, 1], out[rest, 1])
     np.testing.assert_array_equal(second[~gap], first[~gap])
 
+    # the first pass cut short gives the poses of a whole first pass, to the bit
+    cut_short = infer.frames_to_bridge
+    for config in (["pipeline.gap_fill=bridge"], keys):
+        short = infer.reconstruct(obs, load_config(InferConfig, None, config), predictor)
+        monkeypatch.setattr(infer, "frames_to_bridge", lambda seen, covered: len(seen))
+        whole = infer.reconstruct(obs, load_config(InferConfig, None, config), predictor)
+        monkeypatch.setattr(infer, "frames_to_bridge", cut_short)
+        np.testing.assert_array_equal(short.poses, whole.poses)
+        np.testing.assert_array_equal(short.trans, whole.trans)
+
     # a swing fill of the whole gap: nothing to bridge, so no first pass
     half = k
     calls.clear()

@@ -153,7 +153,7 @@ def encode_png(image: np.ndarray, compress: bool = True) -> bytes:
     """Lossless, deterministic PNG bytes of a uint8/uint16 image of 1–4 channels (colour given
     as RGB[A]); not ``compress``: the rows stored unfiltered in uncompressed deflate blocks
     (as large as the raw image, like a RealSense recording, but about ten times faster to
-    write and to read: docs/benchmarks.md).
+    write and six times faster to read: ``benchmarks/bench_png.py``, docs/benchmarks.md).
 
     One fixed row filter per image kind (:func:`_filtered_rows`) and zlib-ng's deflate at
     level 3, about twice as fast as libpng with zlib for the same files (docs/benchmarks.md);

@@ -101,4 +101,5 @@ def frames_to_bridge(measured: NDArray[np.bool_], covered: NDArray[np.bool_] | N
         for a, b in gaps(measured[:, s])
         if not covered[a:b, s].all()
     ]
+    # a gap's end b is steadily seen, so frame b − 1 is not and b + 1 is: b + 2 ≤ n
     return min(max(ends) + 2, len(measured)) if ends else 0

@@ -35,6 +35,7 @@ from collections.abc import Callable, Iterable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -388,16 +389,9 @@ def reconstruct(
     def track(stage: str, measurements: list[FrameMeasurements]) -> tuple[np.ndarray, ...]:
         m = len(measurements)
         wrap = bar(stage)
-        shown = measurements if wrap is None else wrap(measurements, m)  # track_poses iterates
-        corrected, _ = track_poses(
-            predict,
-            start,
-            shown,
-            skeleton,
-            correction,
-            vio.t_s[:m],
-            dt,  # type: ignore[arg-type]
-        )
+        # track_poses only iterates over its measurements, so a progress bar may wrap them
+        shown = measurements if wrap is None else cast(list, wrap(measurements, m))
+        corrected, _ = track_poses(predict, start, shown, skeleton, correction, vio.t_s[:m], dt)
         return np.stack([c.pose for c in corrected]), np.stack([c.trans for c in corrected])
 
     fill = cfg.pipeline.gap_fill
@@ -428,6 +422,7 @@ def reconstruct(
                 "pose, gaps filled", [replace(f, foot_W=feet[k]) for k, f in enumerate(frames)]
             )
     timings["pose"] = time.perf_counter() - t0
+    assert len(poses) == n, "a first pass cut short is always followed by the second"
 
     aa = np.concatenate([poses[:, 3:].reshape(n, 6, 3), np.zeros((n, 2, 3))], axis=1)
     joints = forward_kinematics(skeleton, poses[:, :3], trans, aa)
@@ -438,11 +433,14 @@ def reconstruct(
     )
     feet_W = _foot_points(ChainGeometry.build(skeleton, marker), poses, trans)
     log.info(
-        "standing phase %d frames; body height %.2f m; extrinsic spread %.1f mm / %.2f°",
+        "standing phase %d frames; body height %.2f m; extrinsic spread %.1f mm / %.2f°; "
+        "first correction pass over %d of %d frames",
         n_standing,
         height,
         1e3 * extrinsic.spread_pos_m,
         np.degrees(extrinsic.spread_rot_rad),
+        m,
+        n,
     )
     return InferResult(
         vio=vio,

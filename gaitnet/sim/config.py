@@ -104,8 +104,9 @@ class SceneConfig:
 class OutputConfig:
     """``labels``: write per-frame label and instance maps; ``preview_frames``: frames in the
     contact sheet ``preview.png`` (0 = none, at most 24); ``compress_frames``: deflate the
-    colour and depth PNGs (about 2.3× smaller, about ten times slower to write and to read)
-    rather than store them uncompressed as a RealSense recording does."""
+    colour and depth PNGs (about 2.3× smaller, about ten times slower to write and six times
+    slower to read) rather than store them uncompressed as a RealSense recording does; in
+    ``gaitnet simulate`` and ``gaitnet simulate-dataset`` alike."""
 
     labels: bool = True
     preview_frames: int = 6

@@ -17,7 +17,8 @@
 Each frame is one simulated world (:func:`gaitnet.sim.scene_setup.build_scene`, the same set-up
 as a whole session, from the frame's own seed) seen at a random time inside the walking phase,
 so every ``subject``, ``gait``, ``camera`` (but ``fps``), ``mount`` (but the IMU's pose),
-``scene`` (but ``exposure_drift``), ``sensor`` and ``output.preview_frames`` key acts as in
+``scene`` (but ``exposure_drift``), ``sensor``, ``output.preview_frames`` and
+``output.compress_frames`` (images and depth stored uncompressed by default) key acts as in
 ``gaitnet simulate``; ``mount.pitch_deg`` given as a range ``[lo, hi]`` is drawn per frame
 (``pitch_range_deg`` replaces it: the command's ``--pitch-min/--pitch-max``).
 
@@ -228,11 +229,11 @@ def simulate_dataset(
         indices: Iterable[int] = range(n_frames)
         if progress is not None:  # only now: a progress bar must not precede an early error
             indices = progress(indices, n_frames)
+        compress = cfg.output.compress_frames
         for i in indices:
             frame = simulate_frame(cfg, seed, i)
             label, instance = frame.render.label, frame.render.instance
             name = f"{i:06d}"
-            compress = cfg.output.compress_frames
             (staging / "images" / f"{name}.png").write_bytes(encode_png(frame.rgb, compress))
             (staging / "depth" / f"{name}.png").write_bytes(
                 encode_png(depth_to_units(frame.depth_m, DEPTH_SCALE_M), compress)
