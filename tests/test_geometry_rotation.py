@@ -170,3 +170,34 @@ def test_jacobians_batched() -> None:
     np.testing.assert_allclose(
         so3_right_jacobian_inv(phi)[0, 3], np.linalg.inv(J[0, 3]), atol=1e-12
     )
+
+
+def _hard_rotation_vectors() -> np.ndarray:
+    rng = np.random.default_rng(21)
+    axes = rng.normal(size=(40, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    angles = [0.0, 1e-300, 1e-12, 1e-9, 1e-5, 0.05, 0.1, 1.0, 2.0, 3.0, np.pi - 1e-9, np.pi]
+    near = [a * ax for a in angles for ax in axes[:5]]
+    exact_pi = [np.pi * np.eye(3)[k] for k in range(3)] + [np.pi * axes[0]]
+    return np.array([*near, *exact_pi, *(rng.normal(size=(300, 3)) * 1.5)])
+
+
+def test_single_rotation_fast_paths_match_the_batched_formulas() -> None:
+    """One vector / one matrix take a Python-float path; it must give the batched result."""
+    phis = _hard_rotation_vectors()
+    for phi in phis:
+        R = so3_exp(phi)
+        np.testing.assert_allclose(R, so3_exp(phi[None])[0], rtol=0, atol=4e-15)
+        log_one, log_batched = so3_log(R), so3_log(R[None])[0]
+        np.testing.assert_allclose(log_one, log_batched, rtol=0, atol=4e-15)
+    # a slightly non-orthogonal matrix and a plain list take the same path
+    R = so3_exp(np.array([0.4, -1.1, 0.3])) + 1e-7
+    np.testing.assert_allclose(so3_log(R), so3_log(R[None])[0], rtol=0, atol=4e-15)
+    np.testing.assert_allclose(so3_log(R.tolist()), so3_log(R), rtol=0, atol=0)
+
+
+def test_single_rotation_fast_paths_pass_nan_on() -> None:
+    assert np.isnan(so3_exp(np.array([np.nan, 0.0, 0.0]))).all()
+    with np.errstate(invalid="ignore"):
+        assert np.isnan(so3_log(np.full((3, 3), np.nan))).all()
+        assert np.isnan(so3_log(np.diag([np.inf, 1.0, 1.0]))).any()

@@ -11,6 +11,8 @@ Jacobians follow Solà et al., "A micro Lie theory for state estimation in robot
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -79,10 +81,33 @@ def so3_exp(phi: ArrayLike) -> FloatArray:
     accurate for tiny angles (and exactly ``I`` at ``φ = 0``).
     """
     phi = _as_vec3(phi)
+    if phi.ndim == 1 and np.isfinite(phi).all():
+        return _so3_exp_one(*phi.tolist())
     theta = np.linalg.norm(phi, axis=-1)
     A, B = _exp_coeffs(theta)
     K = skew(phi)
     return np.eye(3) + A[..., None, None] * K + B[..., None, None] * (K @ K)
+
+
+def _so3_exp_one(x: float, y: float, z: float) -> FloatArray:
+    """:func:`so3_exp` of one rotation vector, on Python floats: the same formula, several times
+    faster than the batched arrays for the filter's and the pose tracking's single rotations
+    (docs/benchmarks.md)."""
+    theta = math.sqrt(x * x + y * y + z * z)
+    if theta > 0.0:
+        A = math.sin(theta) / theta
+        half = math.sin(0.5 * theta) / (0.5 * theta)
+    else:
+        A = half = 1.0
+    B = 0.5 * half * half
+    xx, yy, zz, xy, xz, yz = x * x, y * y, z * z, x * y, x * z, y * z
+    return np.array(
+        [
+            [1.0 - B * (yy + zz), -A * z + B * xy, A * y + B * xz],
+            [A * z + B * xy, 1.0 - B * (xx + zz), -A * x + B * yz],
+            [-A * y + B * xz, A * x + B * yz, 1.0 - B * (xx + yy)],
+        ]
+    )
 
 
 def so3_log(R: ArrayLike) -> FloatArray:
@@ -92,7 +117,37 @@ def so3_log(R: ArrayLike) -> FloatArray:
     and near π (where the trace-based ``arccos`` formula loses precision). At exactly π the
     sign of the returned vector is arbitrary (both signs are the same rotation).
     """
+    R = np.asarray(R, dtype=np.float64)
+    if R.shape == (3, 3) and np.isfinite(R).all():
+        return _so3_log_one(R.tolist())
     return rotvec_from_quat(quat_from_rotmat(R))
+
+
+def _so3_log_one(r: list[list[float]]) -> FloatArray:
+    """:func:`so3_log` of one finite matrix (nested lists), on Python floats: the same
+    Shepperd/Markley quaternion (:func:`~gaitnet.geometry.quaternion.quat_from_rotmat`) and
+    ``atan2`` (:func:`~gaitnet.geometry.quaternion.rotvec_from_quat`), several times faster
+    than the batched arrays for single rotations."""
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = r
+    tr = r00 + r11 + r22
+    rows = (
+        (1.0 + tr, r21 - r12, r02 - r20, r10 - r01),
+        (r21 - r12, 1.0 + 2.0 * r00 - tr, r01 + r10, r02 + r20),
+        (r02 - r20, r01 + r10, 1.0 + 2.0 * r11 - tr, r12 + r21),
+        (r10 - r01, r02 + r20, r12 + r21, 1.0 + 2.0 * r22 - tr),
+    )
+    diag = (tr, r00, r11, r22)
+    w, a, b, c = rows[max(range(4), key=diag.__getitem__)]  # the first of equal pivots
+    # the four pivots sum to 4, so the largest is at least 1 and so is the row's norm
+    norm = math.sqrt(w * w + a * a + b * b + c * c)
+    if w < 0.0:
+        norm = -norm
+    w, a, b, c = w / norm, a / norm, b / norm, c / norm
+    n = math.sqrt(a * a + b * b + c * c)
+    # below quaternion._SMALL: 2 atan2(n, w) / n = (2/w)(1 − n²/(3w²) + …)
+    small = n < 1e-8
+    scale = (2.0 / w) * (1.0 - n * n / (3.0 * w * w)) if small else 2.0 * math.atan2(n, w) / n
+    return np.array([scale * a, scale * b, scale * c])
 
 
 def _jacobian_coeffs(theta: FloatArray) -> tuple[FloatArray, FloatArray]:
