@@ -403,3 +403,22 @@ def test_quat_interpolate_out_of_range_and_bad_times() -> None:
     np.testing.assert_allclose(quat_interpolate([3.0], quats[1:2], [3.0]), quats[1:2])
     with pytest.raises(ValueError):
         quat_interpolate([3.0], quats[1:2], [3.5])
+
+
+def test_single_quaternion_and_matrix_fast_paths_match_the_batched_formulas() -> None:
+    """One quaternion / one matrix take a Python-float path; it must give the batched result,
+    refuse a zero quaternion the same way and pass NaN on."""
+    rng = np.random.default_rng(23)
+    quats = [*rng.normal(size=(300, 4)), np.array([1.0, 0, 0, 0]), np.array([0.0, 1, 0, 0])]
+    quats += [np.array([1e-9, 0.6, 0.0, 0.8]), np.array([-0.5, 0.5, -0.5, 0.5]) * 3.0]
+    for q in quats:
+        R = rotmat_from_quat(q)
+        np.testing.assert_allclose(R, rotmat_from_quat(q[None])[0], rtol=0, atol=4e-16)
+        np.testing.assert_allclose(
+            quat_from_rotmat(R), quat_from_rotmat(R[None])[0], rtol=0, atol=4e-16
+        )
+    with pytest.raises(ValueError, match="zero quaternion"):
+        rotmat_from_quat(np.zeros(4))
+    with np.errstate(invalid="ignore"):
+        assert np.isnan(rotmat_from_quat(np.array([np.nan, 0.0, 0.0, 1.0]))).all()
+        assert np.isnan(quat_from_rotmat(np.full((3, 3), np.nan))).all()

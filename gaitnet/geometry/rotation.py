@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from gaitnet.geometry.quaternion import quat_from_rotmat, rotvec_from_quat
+from gaitnet.geometry.quaternion import quat_from_rotmat, quat_from_rotmat_floats, rotvec_from_quat
 
 FloatArray = NDArray[np.float64]
 
@@ -125,24 +125,10 @@ def so3_log(R: ArrayLike) -> FloatArray:
 
 def _so3_log_one(r: list[list[float]]) -> FloatArray:
     """:func:`so3_log` of one finite matrix (nested lists), on Python floats: the same
-    Shepperd/Markley quaternion (:func:`~gaitnet.geometry.quaternion.quat_from_rotmat`) and
-    ``atan2`` (:func:`~gaitnet.geometry.quaternion.rotvec_from_quat`), several times faster
+    Shepperd/Markley quaternion (:func:`~gaitnet.geometry.quaternion.quat_from_rotmat_floats`)
+    and ``atan2`` (:func:`~gaitnet.geometry.quaternion.rotvec_from_quat`), several times faster
     than the batched arrays for single rotations."""
-    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = r
-    tr = r00 + r11 + r22
-    rows = (
-        (1.0 + tr, r21 - r12, r02 - r20, r10 - r01),
-        (r21 - r12, 1.0 + 2.0 * r00 - tr, r01 + r10, r02 + r20),
-        (r02 - r20, r01 + r10, 1.0 + 2.0 * r11 - tr, r12 + r21),
-        (r10 - r01, r02 + r20, r12 + r21, 1.0 + 2.0 * r22 - tr),
-    )
-    diag = (tr, r00, r11, r22)
-    w, a, b, c = rows[max(range(4), key=diag.__getitem__)]  # the first of equal pivots
-    # the four pivots sum to 4, so the largest is at least 1 and so is the row's norm
-    norm = math.sqrt(w * w + a * a + b * b + c * c)
-    if w < 0.0:
-        norm = -norm
-    w, a, b, c = w / norm, a / norm, b / norm, c / norm
+    w, a, b, c = quat_from_rotmat_floats(r)
     n = math.sqrt(a * a + b * b + c * c)
     # below quaternion._SMALL: 2 atan2(n, w) / n = (2/w)(1 − n²/(3w²) + …)
     small = n < 1e-8
