@@ -136,3 +136,18 @@ def test_depth_image_fit_and_height_map():
     ok = np.isfinite(pts[..., 2])
     np.testing.assert_allclose(hm[ok], plane.height(pts[ok]), atol=1e-4)
     assert np.nanmedian(np.abs(hm)) < 0.005
+
+
+def test_height_map_of_a_box_is_the_whole_maps_box() -> None:
+    """``origin`` places a depth box in the image: the same heights, to the bit."""
+    rng = np.random.default_rng(12)
+    depth = rng.uniform(0.5, 3.0, (48, 64)).astype(np.float32)
+    depth[5:9, 10:20] = 0.0
+    K = np.array([[60.0, 0, 31.5], [0, 61.0, 23.5], [0, 0, 1]])
+    plane = FloorPlane(
+        n_C=np.array([0.05, -0.94, -0.34]) / np.linalg.norm([0.05, -0.94, -0.34]), h=1.1
+    )
+    whole = height_map(depth, K, plane)
+    rows, cols = slice(3, 40), slice(7, 50)
+    box = height_map(depth[rows, cols], K, plane, origin=(7, 3))
+    np.testing.assert_array_equal(box, whole[rows, cols])

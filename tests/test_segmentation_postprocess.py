@@ -481,3 +481,29 @@ def test_forward_in_camera_acts_and_is_checked() -> None:
     for bad in ((0.0, 0.0, 0.0), (1.0, float("nan"), 0.0), (1.0, 0.0)):
         with pytest.raises(ValueError, match="forward_in_camera"):
             FootKeypointParams(forward_in_camera=bad)  # type: ignore[arg-type]
+
+
+def test_blobs_in_their_boxes_are_the_whole_images_components() -> None:
+    """The blobs, labelled within the box around the mask, are the 8-connected components of
+    the whole image (those of at least the minimum area), largest first, each in its box."""
+    import cv2
+
+    from gaitnet.segmentation.postprocess import _blobs
+
+    rng = np.random.default_rng(5)
+    mask = cv2.GaussianBlur(rng.random((120, 160)).astype(np.float32), (0, 0), 3) > 0.55
+    mask[:10] = False
+    mask[:, :7] = False
+    n, comp, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    want = sorted(
+        (i for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] >= 5),
+        key=lambda i: -stats[i, cv2.CC_STAT_AREA],
+    )
+    got = _blobs(mask, 5)
+    assert len(got) == len(want) > 3
+    for (own, box), i in zip(got, want, strict=True):
+        whole = np.zeros(mask.shape, bool)
+        whole[box] = own
+        np.testing.assert_array_equal(whole, comp == i)
+        assert own.shape == (stats[i, cv2.CC_STAT_HEIGHT], stats[i, cv2.CC_STAT_WIDTH])
+    assert _blobs(np.zeros((4, 5), bool), 1) == []

@@ -177,17 +177,21 @@ def fit_floor_depth(
     return fit_floor(pts, up_C_prior, params)
 
 
-def height_map(depth_m: np.ndarray, K: np.ndarray, plane: FloorPlane) -> np.ndarray:
+def height_map(
+    depth_m: np.ndarray, K: np.ndarray, plane: FloorPlane, origin: tuple[int, int] = (0, 0)
+) -> np.ndarray:
     """Height above the floor ``h + n·p(u, v)`` (3.23, corrected sign) per pixel, float32 [m].
 
     NaN where the depth is invalid (≤ 0 or non-finite). Uses ``n·p = z (n_x x_n + n_y y_n + n_z)``
-    with the normalised pixel coordinates, so no point image is built.
+    with the normalised pixel coordinates, so no point image is built. ``depth_m`` may be a box
+    of the image whose first pixel is ``origin`` (u, v): the same values as the whole map's there.
     """
     d = np.asarray(depth_m, dtype=np.float32)
     H, W = d.shape
     n = plane.n_C
-    a_u = (n[0] / K[0, 0]) * (np.arange(W, dtype=np.float64) - K[0, 2])
-    a_v = (n[1] / K[1, 1]) * (np.arange(H, dtype=np.float64) - K[1, 2]) + n[2]
+    u0, v0 = origin
+    a_u = (n[0] / K[0, 0]) * (np.arange(u0, u0 + W, dtype=np.float64) - K[0, 2])
+    a_v = (n[1] / K[1, 1]) * (np.arange(v0, v0 + H, dtype=np.float64) - K[1, 2]) + n[2]
     A = (a_v[:, None] + a_u[None, :]).astype(np.float32)
     out = np.float32(plane.h) + d * A
     out[~(d > 0)] = np.nan

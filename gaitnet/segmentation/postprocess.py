@@ -229,9 +229,13 @@ def _ray(K: np.ndarray, u: float, v: float) -> np.ndarray:
     return np.array([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], 1.0])
 
 
-def _keypoint_pixels(mask: np.ndarray, p: FootKeypointParams) -> dict[str, tuple[float, float]]:
-    """Eq. 4.1 on the blob's pixels (module docstring)."""
+def _keypoint_pixels(
+    mask: np.ndarray, p: FootKeypointParams, origin: tuple[int, int] = (0, 0)
+) -> dict[str, tuple[float, float]]:
+    """Eq. 4.1 on the blob's pixels (module docstring); ``mask`` may be a box of the image
+    whose first pixel is ``origin`` (u, v)."""
     v, u = np.nonzero(mask)
+    u, v = u + origin[0], v + origin[1]
     uf, vf = u.astype(np.float64), v.astype(np.float64)
     if p.keypoint_axis == "u":
         a, hi_is_top = uf, True
@@ -283,11 +287,28 @@ def _filter_blob(
     return mask
 
 
-def _blobs(mask: np.ndarray, min_area: float) -> list[np.ndarray]:
-    n, comp, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+Box = tuple[slice, slice]  # rows, columns of a bounding box
+
+
+def _blobs(mask: np.ndarray, min_area: float) -> list[tuple[np.ndarray, Box]]:
+    """Each 8-connected blob of ``mask`` of at least ``min_area`` pixels, largest first, as its
+    mask within its bounding box and that box (the per-blob work then touches the box only).
+    The components are labelled within the box around all of ``mask`` (the same blobs, in the
+    same order, as over the whole image)."""
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    if rows.size == 0:
+        return []
+    y0, x0 = int(rows[0]), int(cols[0])
+    around = np.ascontiguousarray(mask[y0 : rows[-1] + 1, x0 : cols[-1] + 1], dtype=np.uint8)
+    n, comp, stats, _ = cv2.connectedComponentsWithStats(around, connectivity=8)
     keep = [i for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] >= max(min_area, 1)]
     keep.sort(key=lambda i: -stats[i, cv2.CC_STAT_AREA])
-    return [comp == i for i in keep]
+    blobs = []
+    for i in keep:
+        x, y, w, h = (int(v) for v in stats[i, :4])
+        own = comp[y : y + h, x : x + w] == i
+        blobs.append((own, (slice(y0 + y, y0 + y + h), slice(x0 + x, x0 + x + w))))
+    return blobs
 
 
 def _lateral(
@@ -352,15 +373,18 @@ def foot_keypoints(
     if up is None and plane is not None:
         up = np.asarray(plane.n_C, dtype=np.float64)
     left = left_axis(up, p.forward_in_camera)
-    height = height_map(z, K, plane) if plane is not None else None
     feet: list[FootDetection] = []
     min_area = max(p.min_area_fraction * H * W, 1)
-    for blob in _blobs(foot_mask, p.min_area_fraction * H * W):
-        mask = _filter_blob(blob, z, height, p)
+    for blob, box in _blobs(foot_mask, p.min_area_fraction * H * W):
+        z_box, origin = z[box], (box[1].start, box[0].start)
+        height = height_map(z_box, K, plane, origin) if plane is not None else None
+        mask = _filter_blob(blob, z_box, height, p)
         if mask is None or mask.sum() < min_area:
             continue
-        for part in _split_merged(mask, z, K, left, p.split_width_m, min_area):
-            px = _keypoint_pixels(part, p)
+        for piece in _split_merged(mask, z_box, K, left, p.split_width_m, min_area, origin):
+            part = np.zeros((H, W), bool)
+            part[box] = piece
+            px = _keypoint_pixels(piece, p, origin)
             pts = {name: _point(z, part, K, px[name], p) for name in KEYPOINT_NAMES}
             if _beyond_reach(K, px["mid"], pts["mid"], plane, up, p.max_distance_m):
                 continue
@@ -384,10 +408,17 @@ def kept_feet_labels(labels: np.ndarray, feet: list[FootDetection]) -> np.ndarra
 
 
 def _split_merged(
-    mask: np.ndarray, z: np.ndarray, K: np.ndarray, left: np.ndarray, width: float, min_area: float
+    mask: np.ndarray,
+    z: np.ndarray,
+    K: np.ndarray,
+    left: np.ndarray,
+    width: float,
+    min_area: float,
+    origin: tuple[int, int] = (0, 0),
 ) -> list[np.ndarray]:
     """``mask`` as it is, or its two halves when it spreads wider than ``width`` along
-    ``left`` (two feet merged into one blob; :attr:`FootKeypointParams.split_width_m`)."""
+    ``left`` (two feet merged into one blob; :attr:`FootKeypointParams.split_width_m`).
+    ``mask`` and ``z`` may be a box of the image whose first pixel is ``origin`` (u, v)."""
     if width <= 0:
         return [mask]
     v, u = np.nonzero(mask)
@@ -396,7 +427,10 @@ def _split_merged(
     if valid.sum() < 2:
         return [mask]
     d = np.where(valid, d, np.median(d[valid]))  # a hole lies at the blob's typical depth
-    lateral = ((u - K[0, 2]) / K[0, 0] * left[0] + (v - K[1, 2]) / K[1, 1] * left[1] + left[2]) * d
+    uu, vv = u + origin[0], v + origin[1]  # pixels of the image
+    lateral = (
+        (uu - K[0, 2]) / K[0, 0] * left[0] + (vv - K[1, 2]) / K[1, 1] * left[1] + left[2]
+    ) * d
     lo, hi = np.percentile(lateral, [5, 95])
     if hi - lo <= width:
         return [mask]
@@ -412,16 +446,21 @@ def _split_merged(
 
 
 def _leg_side(
-    foot: FootDetection, legs: list[np.ndarray], K: np.ndarray, left: np.ndarray, attach: int
+    foot: FootDetection,
+    legs: list[tuple[np.ndarray, Box]],
+    K: np.ndarray,
+    left: np.ndarray,
+    attach: int,
 ) -> str:
     """The side of the leg blob attached to ``foot`` (its pixel farthest from the foot)."""
     k = 2 * attach + 1
     near = cv2.dilate(foot.mask.astype(np.uint8), np.ones((k, k), np.uint8)) > 0
-    contact = [int((leg & near).sum()) for leg in legs]
+    contact = [int((leg & near[box]).sum()) for leg, box in legs]
     if not contact or max(contact) == 0:
         return "unknown"
-    leg = legs[int(np.argmax(contact))]
+    leg, box = legs[int(np.argmax(contact))]
     v, u = np.nonzero(leg)
+    v, u = v + box[0].start, u + box[1].start
     mu, mv = foot.keypoints_px["mid"]
     far = int(np.argmax((u - mu) ** 2 + (v - mv) ** 2))
     lateral = float(_ray(K, u[far], v[far]) @ left)
@@ -442,7 +481,7 @@ def _assign_sides(
         a, b = sorted(pair, key=lambda f: -f.lateral_m)
         a.side, b.side = "left", "right"
         return
-    legs: list[np.ndarray] | None = None
+    legs: list[tuple[np.ndarray, Box]] | None = None
     for foot in pair:
         if abs(foot.lateral_m) >= p.min_lateral_m and foot.lateral_m != 0.0:
             foot.side = "left" if foot.lateral_m > 0 else "right"
