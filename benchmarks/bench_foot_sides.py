@@ -5,8 +5,9 @@ runs :func:`gaitnet.segmentation.postprocess.foot_keypoints` on the true label m
 sensor's depth, with the frame's gravity and without (``gravity_C=None``: the floor normal
 from the no-IMU fit). Each foot found is compared with the majority side of the simulator's
 side map under its mask. Printed per mode: feet found, agreeing, disagreeing, unknown, the
-same for frames with one foot in view, how the sides were decided, and the share of keypoints
-with a 3-D point. Seeds 900+ were used to choose the rule's defaults; report other seeds.
+same for frames with one foot in view, how the sides were decided, the share of keypoints
+with a 3-D point, and the post-processing's milliseconds per frame (one thread). Seeds 900+
+were used to choose the rule's defaults; report other seeds.
 
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_foot_sides.py --frames 50 --seed 1
 """
@@ -14,6 +15,7 @@ with a 3-D point. Seeds 900+ were used to choose the rule's defaults; report oth
 from __future__ import annotations
 
 import os
+import time
 from collections import Counter
 from pathlib import Path
 
@@ -32,12 +34,18 @@ ROOT = Path(__file__).resolve().parents[1]
 SIDES = {1: "left", 2: "right"}
 
 
-def side_agreement(frames, params: FootKeypointParams, use_gravity: bool) -> dict[str, int]:
-    """Counts of feet by outcome over ``frames`` (module docstring)."""
+def side_agreement(
+    frames, params: FootKeypointParams, use_gravity: bool
+) -> tuple[dict[str, int], float]:
+    """Counts of feet by outcome over ``frames`` (module docstring), and the seconds
+    :func:`foot_keypoints` took."""
     c: Counter = Counter()
+    seconds = 0.0
     for f in frames:
         g = f.gravity_C() if use_gravity else None
+        tic = time.perf_counter()
         feet = foot_keypoints(f.render.label, f.depth_m, f.K, params, gravity_C=g)
+        seconds += time.perf_counter() - tic
         single = len(feet) == 1
         for foot in feet:
             sides = f.render.instance[foot.mask]
@@ -51,7 +59,7 @@ def side_agreement(frames, params: FootKeypointParams, use_gravity: bool) -> dic
                 c["single"] += 1
                 c[f"single_{outcome}"] += 1
             c["points"] += sum(p is not None for p in foot.keypoints_C.values())
-    return dict(c)
+    return dict(c), seconds
 
 
 def main() -> None:
@@ -67,7 +75,7 @@ def main() -> None:
     print(f"{len(frames)} frames {w}×{h} ({args.config.name}, seed {args.seed})")
     params = FootKeypointParams()
     for name, use_gravity in (("gravity", True), ("no gravity", False)):
-        c = side_agreement(frames, params, use_gravity)
+        c, seconds = side_agreement(frames, params, use_gravity)
         n = max(c.get("feet", 0), 1)
         s = max(c.get("single", 0), 1)
         print(
@@ -76,7 +84,8 @@ def main() -> None:
             f"{c.get('unknown', 0)}; one foot in view: {c.get('single', 0)} feet, agree "
             f"{c.get('single_agree', 0)} ({100 * c.get('single_agree', 0) / s:.1f} %), "
             f"disagree {c.get('single_disagree', 0)}; keypoints with 3-D "
-            f"{100 * c.get('points', 0) / (3 * n):.1f} %"
+            f"{100 * c.get('points', 0) / (3 * n):.1f} %; "
+            f"{1e3 * seconds / len(frames):.2f} ms per frame"
         )
 
 

@@ -411,12 +411,13 @@ def test_single_quaternion_and_matrix_fast_paths_match_the_batched_formulas() ->
     rng = np.random.default_rng(23)
     quats = [*rng.normal(size=(300, 4)), np.array([1.0, 0, 0, 0]), np.array([0.0, 1, 0, 0])]
     quats += [np.array([1e-9, 0.6, 0.0, 0.8]), np.array([-0.5, 0.5, -0.5, 0.5]) * 3.0]
-    for q in quats:
+    for q in quats:  # the same operations in the same order: the same bits
         R = rotmat_from_quat(q)
-        np.testing.assert_allclose(R, rotmat_from_quat(q[None])[0], rtol=0, atol=4e-16)
-        np.testing.assert_allclose(
-            quat_from_rotmat(R), quat_from_rotmat(R[None])[0], rtol=0, atol=4e-16
-        )
+        np.testing.assert_array_equal(R, rotmat_from_quat(q[None])[0])
+        np.testing.assert_array_equal(quat_from_rotmat(R), quat_from_rotmat(R[None])[0])
+    # pivot ties: a 120° turn about (1, 1, 1) permutes the axes (all four pivots equal), ±0.0
+    for R in (np.array([[0.0, 0, 1], [1, 0, 0], [0, 1, 0]]), np.diag([1.0, -1.0, -1.0]) * -0.0):
+        np.testing.assert_array_equal(quat_from_rotmat(R), quat_from_rotmat(R[None])[0])
     with pytest.raises(ValueError, match="zero quaternion"):
         rotmat_from_quat(np.zeros(4))
     with np.errstate(invalid="ignore"):

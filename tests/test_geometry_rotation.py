@@ -198,6 +198,9 @@ def test_single_rotation_fast_paths_match_the_batched_formulas() -> None:
 
 def test_single_rotation_fast_paths_pass_nan_on() -> None:
     assert np.isnan(so3_exp(np.array([np.nan, 0.0, 0.0]))).all()
+    with np.errstate(invalid="ignore", over="ignore"):
+        huge = so3_exp(np.array([1e160, 0.0, 0.0]))  # its square overflows: the batched path
+        np.testing.assert_array_equal(huge, so3_exp(np.array([[1e160, 0.0, 0.0]]))[0])
     with np.errstate(invalid="ignore"):
         assert np.isnan(so3_log(np.full((3, 3), np.nan))).all()
         assert np.isnan(so3_log(np.diag([np.inf, 1.0, 1.0]))).any()

@@ -507,3 +507,60 @@ def test_blobs_in_their_boxes_are_the_whole_images_components() -> None:
         np.testing.assert_array_equal(whole, comp == i)
         assert own.shape == (stats[i, cv2.CC_STAT_HEIGHT], stats[i, cv2.CC_STAT_WIDTH])
     assert _blobs(np.zeros((4, 5), bool), 1) == []
+
+
+def _whole_image_order(mask: np.ndarray, min_area: int) -> list[np.ndarray]:
+    import cv2
+
+    n, comp, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    keep = [i for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] >= min_area]
+    return [comp == i for i in sorted(keep, key=lambda i: -stats[i, cv2.CC_STAT_AREA])]
+
+
+@pytest.mark.parametrize("top", [0, 1, 2, 3])
+def test_blobs_of_equal_area_keep_the_whole_images_order(top: int) -> None:
+    """Ties in area are ordered by OpenCV's labels; labelling in a box that starts on an odd
+    row would regroup its 2×2 blocks and reorder them (A before B over the whole image)."""
+    from gaitnet.segmentation.postprocess import _blobs
+
+    mask = np.zeros((20, 30), bool)
+    mask[top, 10:12] = True  # A
+    mask[top + 1, 0:2] = True  # B, the same area, one row lower
+    rng = np.random.default_rng(top)
+    masks = [mask]
+    for _ in range(40):  # many equal squares at random places
+        m = np.zeros((61, 83), bool)
+        for _ in range(8):
+            y, x = rng.integers(1, 58), rng.integers(0, 80)
+            m[y : y + 3, x : x + 3] = True
+        masks.append(m)
+    for m in masks:
+        got = _blobs(m, 1)
+        want = _whole_image_order(m, 1)
+        assert len(got) == len(want)
+        for (own, box), whole_blob in zip(got, want, strict=True):
+            whole = np.zeros(m.shape, bool)
+            whole[box] = own
+            np.testing.assert_array_equal(whole, whole_blob)
+
+
+def test_leg_side_reads_the_leg_blob_where_it_lies_in_the_image() -> None:
+    """The leg attached to a foot gives its side by its pixel farthest from the foot: here the
+    top of a leg right of the image centre, so the right side (left axis −x); read within its
+    box without the box's place, it would lie left of the centre."""
+    from gaitnet.segmentation.postprocess import FootDetection, _blobs, _leg_side
+
+    labels_leg = np.zeros((100, 100), bool)
+    labels_leg[40:86, 60:67] = True
+    foot = np.zeros((100, 100), bool)
+    foot[80:91, 60:71] = True
+    detection = FootDetection("unknown", {"mid": (65.0, 85.0)}, {"mid": None}, 121, 0.0, foot)
+    K = np.array([[100.0, 0.0, 50.0], [0.0, 100.0, 50.0], [0.0, 0.0, 1.0]])
+    legs = _blobs(labels_leg, 1)
+    assert legs[0][1][1].start == 60  # the box starts well inside the image
+    assert _leg_side(detection, legs, K, np.array([-1.0, 0.0, 0.0]), attach=2) == "right"
+    mirrored = _blobs(labels_leg[:, ::-1], 1)
+    mirrored_foot = FootDetection(
+        "unknown", {"mid": (34.0, 85.0)}, {"mid": None}, 121, 0.0, foot[:, ::-1]
+    )
+    assert _leg_side(mirrored_foot, mirrored, K, np.array([-1.0, 0.0, 0.0]), attach=2) == "left"

@@ -53,6 +53,7 @@ __all__ = [
     "quat_from_axis_angle",
     "quat_from_dcm",
     "quat_from_rotmat",
+    "quat_from_rotmat_floats",
     "quat_from_rotvec",
     "quat_identity",
     "quat_interpolate",

@@ -16,7 +16,12 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from gaitnet.geometry.quaternion import quat_from_rotmat, quat_from_rotmat_floats, rotvec_from_quat
+from gaitnet.geometry.quaternion import (
+    _SMALL,
+    quat_from_rotmat,
+    quat_from_rotmat_floats,
+    rotvec_from_quat,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -82,18 +87,22 @@ def so3_exp(phi: ArrayLike) -> FloatArray:
     """
     phi = _as_vec3(phi)
     if phi.ndim == 1 and np.isfinite(phi).all():
-        return _so3_exp_one(*phi.tolist())
+        one = _so3_exp_one(*phi.tolist())
+        if one is not None:
+            return one
     theta = np.linalg.norm(phi, axis=-1)
     A, B = _exp_coeffs(theta)
     K = skew(phi)
     return np.eye(3) + A[..., None, None] * K + B[..., None, None] * (K @ K)
 
 
-def _so3_exp_one(x: float, y: float, z: float) -> FloatArray:
+def _so3_exp_one(x: float, y: float, z: float) -> FloatArray | None:
     """:func:`so3_exp` of one rotation vector, on Python floats: the same formula, several times
     faster than the batched arrays for the filter's and the pose tracking's single rotations
-    (docs/benchmarks.md)."""
+    (docs/benchmarks.md); None where its square overflows (the batched path then)."""
     theta = math.sqrt(x * x + y * y + z * z)
+    if not math.isfinite(theta):
+        return None
     if theta > 0.0:
         A = math.sin(theta) / theta
         half = math.sin(0.5 * theta) / (0.5 * theta)
@@ -130,8 +139,8 @@ def _so3_log_one(r: list[list[float]]) -> FloatArray:
     than the batched arrays for single rotations."""
     w, a, b, c = quat_from_rotmat_floats(r)
     n = math.sqrt(a * a + b * b + c * c)
-    # below quaternion._SMALL: 2 atan2(n, w) / n = (2/w)(1 − n²/(3w²) + …)
-    small = n < 1e-8
+    # below _SMALL: 2 atan2(n, w) / n = (2/w)(1 − n²/(3w²) + …), as rotvec_from_quat
+    small = n < _SMALL
     scale = (2.0 / w) * (1.0 - n * n / (3.0 * w * w)) if small else 2.0 * math.atan2(n, w) / n
     return np.array([scale * a, scale * b, scale * c])
 

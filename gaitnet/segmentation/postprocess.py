@@ -64,7 +64,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Literal, TypeAlias
 
 import cv2
 import numpy as np
@@ -287,18 +287,19 @@ def _filter_blob(
     return mask
 
 
-Box = tuple[slice, slice]  # rows, columns of a bounding box
+_Box: TypeAlias = tuple[slice, slice]  # rows, columns of a bounding box
 
 
-def _blobs(mask: np.ndarray, min_area: float) -> list[tuple[np.ndarray, Box]]:
+def _blobs(mask: np.ndarray, min_area: float) -> list[tuple[np.ndarray, _Box]]:
     """Each 8-connected blob of ``mask`` of at least ``min_area`` pixels, largest first, as its
     mask within its bounding box and that box (the per-blob work then touches the box only).
-    The components are labelled within the box around all of ``mask`` (the same blobs, in the
-    same order, as over the whole image)."""
+    The components are labelled within the box around all of ``mask``, its top on an even row:
+    OpenCV's 8-connected labelling scans 2×2 blocks from the first row it is given, so the
+    labels, which order blobs of equal area, are then those of the whole image."""
     rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
     if rows.size == 0:
         return []
-    y0, x0 = int(rows[0]), int(cols[0])
+    y0, x0 = int(rows[0]) & ~1, int(cols[0])
     around = np.ascontiguousarray(mask[y0 : rows[-1] + 1, x0 : cols[-1] + 1], dtype=np.uint8)
     n, comp, stats, _ = cv2.connectedComponentsWithStats(around, connectivity=8)
     keep = [i for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] >= max(min_area, 1)]
@@ -447,7 +448,7 @@ def _split_merged(
 
 def _leg_side(
     foot: FootDetection,
-    legs: list[tuple[np.ndarray, Box]],
+    legs: list[tuple[np.ndarray, _Box]],
     K: np.ndarray,
     left: np.ndarray,
     attach: int,
@@ -481,7 +482,7 @@ def _assign_sides(
         a, b = sorted(pair, key=lambda f: -f.lateral_m)
         a.side, b.side = "left", "right"
         return
-    legs: list[tuple[np.ndarray, Box]] | None = None
+    legs: list[tuple[np.ndarray, _Box]] | None = None
     for foot in pair:
         if abs(foot.lateral_m) >= p.min_lateral_m and foot.lateral_m != 0.0:
             foot.side = "left" if foot.lateral_m > 0 else "right"
