@@ -22,7 +22,8 @@ from gaitnet.io import open_session
 from gaitnet.motion.skeleton import builtin_skeleton, forward_kinematics
 from gaitnet.pipeline.config import InferConfig, PipelineParams
 from gaitnet.pipeline.foot_points import floor_in_camera
-from gaitnet.pipeline.infer import _contact, _standing_feet, _standing_frames
+from gaitnet.pipeline.infer import _contact
+from gaitnet.pipeline.pelvis_extrinsic import standing_feet, standing_frames
 from gaitnet.segmentation.edge_refine import EdgeRefineParams
 from gaitnet.segmentation.onnx_runtime import export_segmenter_onnx
 from gaitnet.segmentation.segmenter_net import build_segmenter
@@ -134,9 +135,9 @@ def test_standing_frames_and_contact() -> None:
     t = np.arange(60) / 30.0
     T = np.tile(np.eye(4), (60, 1, 1))
     T[20:, 0, 3] = (t[20:] - t[19]) * 1.0  # walks at 1 m/s from frame 20
-    assert _standing_frames(t, T, InferConfig()) == 20
-    short = InferConfig(pipeline=PipelineParams(standing_s=0.3))
-    assert _standing_frames(t, T, short) == 10  # frames at 0 … 0.3 s
+    p = PipelineParams()
+    assert standing_frames(t, T, p.standing_s, p.standing_max_speed_mps) == 20
+    assert standing_frames(t, T, 0.3, p.standing_max_speed_mps) == 10  # frames at 0 … 0.3 s
 
     class Vio:
         stance_feet = [
@@ -161,10 +162,10 @@ def test_standing_feet_take_only_what_was_seen_while_standing() -> None:
             StanceFoot(1, "right", 1.6, 1.9, np.array([0.8, -0.1]), np.zeros(2), 3),
         ]
 
-    feet = _standing_feet(measured, Vio(), 0.04, 20)  # type: ignore[arg-type]
+    feet = standing_feet(measured, Vio(), 0.04, 20)  # type: ignore[arg-type]
     np.testing.assert_allclose(feet, [[0.1, 0.1, 0.05], [0.0, -0.1, 0.04]])
     Vio.stance_feet = Vio.stance_feet[1:]  # only the step: first seen after standing
-    feet = _standing_feet(measured, Vio(), 0.04, 20)  # type: ignore[arg-type]
+    feet = standing_feet(measured, Vio(), 0.04, 20)  # type: ignore[arg-type]
     assert np.all(np.isnan(feet[1])) and np.all(np.isfinite(feet[0]))
 
 

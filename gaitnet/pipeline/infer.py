@@ -53,6 +53,8 @@ from gaitnet.pipeline.pelvis_extrinsic import (
     complete_standing_feet,
     estimate_T_PfromC,
     pelvis_from_camera,
+    standing_feet,
+    standing_frames,
     standing_T_WfromP,
 )
 from gaitnet.pipeline.pose_residuals import ChainGeometry, ChainState, chain_points
@@ -139,45 +141,6 @@ def _contact(vio: VioResult, t_s: np.ndarray) -> np.ndarray:
             inside = (t_s >= foot.t_first_s - 1e-6) & (t_s <= foot.t_last_s + 1e-6)
             c[inside, SIDES.index(foot.side)] = 1.0
     return c
-
-
-def _standing_frames(t_s: np.ndarray, T_WfromC: np.ndarray, cfg: InferConfig) -> int:
-    """Frames at the start before the camera moves (or ``standing_s`` ends); at least 1."""
-    p = cfg.pipeline
-    if len(t_s) < 2:
-        return len(t_s)
-    speed = np.linalg.norm(np.diff(T_WfromC[:, :3, 3], axis=0), axis=1) / np.maximum(
-        np.diff(t_s), 1e-6
-    )
-    n = 1
-    while (
-        n < len(t_s)
-        and t_s[n] - t_s[0] <= p.standing_s
-        and speed[n - 1] <= (p.standing_max_speed_mps)
-    ):
-        n += 1
-    return n
-
-
-def _standing_feet(
-    measured: np.ndarray, vio: VioResult, skeleton_marker_height: float, n_standing: int
-) -> np.ndarray:
-    """(2, 3) standing foot points: the mean of the measured ones over the standing frames,
-    else the stance landmark of that side that the filter saw during the standing phase (a
-    later one is a step, not the standing foot) at the marker's standing height, else NaN."""
-    feet = np.full((2, 3), np.nan)
-    t_end = vio.t_s[n_standing - 1]
-    for i, side in enumerate(SIDES):
-        seen = measured[:n_standing, i]
-        seen = seen[~np.isnan(seen[:, 0])]
-        if len(seen):
-            feet[i] = seen.mean(axis=0)
-            continue
-        standing = [f for f in vio.stance_feet if f.side == side and f.t_first_s <= t_end]
-        if standing:
-            xy = min(standing, key=lambda f: f.t_first_s).xy
-            feet[i] = [xy[0], xy[1], skeleton_marker_height]
-    return feet
 
 
 def _initial_pose(T_WfromP: np.ndarray, skeleton: LowerBodySkeleton) -> PoseState:
@@ -337,7 +300,9 @@ def reconstruct(
     def bar(stage: str) -> Progress | None:
         return progress(stage) if progress is not None else None
 
-    n_standing = _standing_frames(vio.t_s, T_WfromC, cfg)
+    n_standing = standing_frames(
+        vio.t_s, T_WfromC, cfg.pipeline.standing_s, cfg.pipeline.standing_max_speed_mps
+    )
     height = cfg.pipeline.subject_height_m
     if height == 0:
         camera_height = float(np.median(T_WfromC[:n_standing, 2, 3]))
@@ -356,7 +321,7 @@ def reconstruct(
         cfg.correction, marker_offset_m=tuple(scale * np.array(cfg.correction.marker_offset_m))
     )
     marker_height = 0.039 * height + correction.marker_offset_m[1]  # ankle height + offset
-    foot0 = _standing_feet(measured, vio, marker_height, n_standing)
+    foot0 = standing_feet(measured, vio, marker_height, n_standing)
     foot0, note = complete_standing_feet(
         foot0, skeleton, T_WfromC[0], marker_height,
         cfg.pipeline.standing_feet_behind_camera_m, correction,

@@ -19,8 +19,10 @@ start, the pelvis pose is taken from a standing pose of the skeleton placed in t
 The height comes from the feet, so a pelvis that sags or a knee that bends while standing
 shows up as a vertical offset of the extrinsic (sub-centimetre for a relaxed stance).
 
-A foot that was not seen while standing (a camera pitched up too far to see the feet, a foot
-outside the image) is placed by :func:`complete_standing_feet`: beside the other foot at the
+The standing frames are those before the camera moves (:func:`standing_frames`); the
+standing feet the points measured over them, else the filter's landmark seen while standing
+(:func:`standing_feet`). A foot that was not seen while standing (a camera pitched up too far
+to see the feet, a foot outside the image) is placed by :func:`complete_standing_feet`: beside the other foot at the
 skeleton's stance width, or, when neither was seen, both a nominal distance behind the camera
 along its horizontal viewing direction; the extrinsic is then only as good as that guess.
 """
@@ -39,6 +41,7 @@ from gaitnet.motion.skeleton import LowerBodySkeleton
 from gaitnet.pipeline.pose_residuals import ChainGeometry, ChainState, chain_points
 from gaitnet.pipeline.pose_types import PoseCorrectionParams, R_PfromSMPL
 from gaitnet.vio.gait import SIDES
+from gaitnet.vio.result import VioResult
 
 FloatArray = NDArray[np.float64]
 
@@ -48,6 +51,8 @@ __all__ = [
     "estimate_T_PfromC",
     "pelvis_from_camera",
     "standing_T_WfromP",
+    "standing_feet",
+    "standing_frames",
     "standing_model_feet",
 ]
 
@@ -213,3 +218,41 @@ def estimate_T_PfromC(T_WfromC: ArrayLike, T_WfromP: ArrayLike) -> PelvisExtrins
 def pelvis_from_camera(T_WfromC: ArrayLike, T_PfromC: ArrayLike) -> FloatArray:
     """Pelvis poses ``T_WfromP = T_WfromC T_PfromC⁻¹`` (..., 4, 4); both inputs may be batched."""
     return np.asarray(T_WfromC, dtype=np.float64) @ invert_T(T_PfromC)
+
+
+def standing_frames(
+    t_s: np.ndarray, T_WfromC: np.ndarray, standing_s: float, max_speed_mps: float
+) -> int:
+    """Frames at the start before the camera moves faster than ``max_speed_mps`` (or
+    ``standing_s`` ends: ``pipeline.standing_s``, ``pipeline.standing_max_speed_mps``); at
+    least 1."""
+    if len(t_s) < 2:
+        return len(t_s)
+    speed = np.linalg.norm(np.diff(T_WfromC[:, :3, 3], axis=0), axis=1) / np.maximum(
+        np.diff(t_s), 1e-6
+    )
+    n = 1
+    while n < len(t_s) and t_s[n] - t_s[0] <= standing_s and speed[n - 1] <= max_speed_mps:
+        n += 1
+    return n
+
+
+def standing_feet(
+    measured: np.ndarray, vio: VioResult, skeleton_marker_height: float, n_standing: int
+) -> np.ndarray:
+    """(2, 3) standing foot points: the mean of the measured ones over the standing frames,
+    else the stance landmark of that side that the filter saw during the standing phase (a
+    later one is a step, not the standing foot) at the marker's standing height, else NaN."""
+    feet = np.full((2, 3), np.nan)
+    t_end = vio.t_s[n_standing - 1]
+    for i, side in enumerate(SIDES):
+        seen = measured[:n_standing, i]
+        seen = seen[~np.isnan(seen[:, 0])]
+        if len(seen):
+            feet[i] = seen.mean(axis=0)
+            continue
+        standing = [f for f in vio.stance_feet if f.side == side and f.t_first_s <= t_end]
+        if standing:
+            xy = min(standing, key=lambda f: f.t_first_s).xy
+            feet[i] = [xy[0], xy[1], skeleton_marker_height]
+    return feet
