@@ -31,13 +31,17 @@ used by :func:`quat_boxplus` / :func:`quat_boxminus`.
 
 from __future__ import annotations
 
-import math
 from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from gaitnet.geometry._timeinterp import OutOfRange, bracket_times
+from gaitnet.geometry.single_rotation import (
+    SERIES_BELOW,
+    quat_from_rotmat_floats,
+    rotmat_from_quat_one,
+)
 
 FloatArray = NDArray[np.float64]
 Chart = Literal["fquat", "exp"]
@@ -53,7 +57,6 @@ __all__ = [
     "quat_from_axis_angle",
     "quat_from_dcm",
     "quat_from_rotmat",
-    "quat_from_rotmat_floats",
     "quat_from_rotvec",
     "quat_identity",
     "quat_interpolate",
@@ -71,7 +74,7 @@ __all__ = [
     "rotvec_from_quat",
 ]
 
-_SMALL = 1e-8  # below this |vector part| the series forms are exact to float64 precision
+_SMALL = SERIES_BELOW  # below this |vector part| the series forms are exact to float64
 
 
 def _as_quat(q: ArrayLike) -> FloatArray:
@@ -182,7 +185,7 @@ def rotmat_from_quat(q: ArrayLike) -> FloatArray:
     """
     q = _as_quat(q)
     if q.shape == (4,) and np.isfinite(q).all():
-        return _rotmat_from_quat_one(*q.tolist())
+        return rotmat_from_quat_one(*q.tolist())
     w, x, y, z = np.moveaxis(quat_normalize(q), -1, 0)
     xx, yy, zz = x * x, y * y, z * z
     xy, xz, yz = x * y, x * z, y * z
@@ -198,25 +201,6 @@ def rotmat_from_quat(q: ArrayLike) -> FloatArray:
     R[..., 2, 1] = 2.0 * (yz + wx)
     R[..., 2, 2] = 1.0 - 2.0 * (xx + yy)
     return R
-
-
-def _rotmat_from_quat_one(w: float, x: float, y: float, z: float) -> FloatArray:
-    """:func:`rotmat_from_quat` of one finite quaternion on Python floats (the same formula,
-    several times faster than the batched arrays for the filter's single rotations)."""
-    norm = math.sqrt(w * w + x * x + y * y + z * z)
-    if norm < 1e-300:
-        raise ValueError("cannot normalize a zero quaternion")
-    w, x, y, z = w / norm, x / norm, y / norm, z / norm
-    xx, yy, zz = x * x, y * y, z * z
-    xy, xz, yz = x * y, x * z, y * z
-    wx, wy, wz = w * x, w * y, w * z
-    return np.array(
-        [
-            [1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy)],
-            [2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx)],
-            [2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy)],
-        ]
-    )
 
 
 def dcm_from_quat(q: ArrayLike) -> FloatArray:
@@ -257,27 +241,6 @@ def quat_from_rotmat(R: ArrayLike) -> FloatArray:
     row = np.take_along_axis(M, k[..., None, None], axis=-2)[..., 0, :]
     q = row / np.linalg.norm(row, axis=-1, keepdims=True)
     return quat_positive(q)
-
-
-def quat_from_rotmat_floats(r: list[list[float]]) -> tuple[float, float, float, float]:
-    """:func:`quat_from_rotmat` of one finite matrix given as nested lists, on Python floats
-    (the same pivot and formulas, several times faster than the batched arrays); ``(w, x, y,
-    z)`` with ``w >= 0``."""
-    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = r
-    tr = r00 + r11 + r22
-    rows = (
-        (1.0 + tr, r21 - r12, r02 - r20, r10 - r01),
-        (r21 - r12, 1.0 + 2.0 * r00 - tr, r01 + r10, r02 + r20),
-        (r02 - r20, r01 + r10, 1.0 + 2.0 * r11 - tr, r12 + r21),
-        (r10 - r01, r02 + r20, r12 + r21, 1.0 + 2.0 * r22 - tr),
-    )
-    diag = (tr, r00, r11, r22)
-    w, x, y, z = rows[max(range(4), key=diag.__getitem__)]  # the first of equal pivots
-    # the four pivots sum to 4, so the largest is at least 1 and so is the row's norm
-    norm = math.sqrt(w * w + x * x + y * y + z * z)
-    if w < 0.0:
-        norm = -norm
-    return w / norm, x / norm, y / norm, z / norm
 
 
 def quat_from_dcm(C: ArrayLike) -> FloatArray:

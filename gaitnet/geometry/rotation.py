@@ -11,17 +11,11 @@ Jacobians follow Solà et al., "A micro Lie theory for state estimation in robot
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from gaitnet.geometry.quaternion import (
-    _SMALL,
-    quat_from_rotmat,
-    quat_from_rotmat_floats,
-    rotvec_from_quat,
-)
+from gaitnet.geometry.quaternion import quat_from_rotmat, rotvec_from_quat
+from gaitnet.geometry.single_rotation import so3_exp_one, so3_log_one
 
 FloatArray = NDArray[np.float64]
 
@@ -87,36 +81,13 @@ def so3_exp(phi: ArrayLike) -> FloatArray:
     """
     phi = _as_vec3(phi)
     if phi.ndim == 1 and np.isfinite(phi).all():
-        one = _so3_exp_one(*phi.tolist())
+        one = so3_exp_one(*phi.tolist())
         if one is not None:
             return one
     theta = np.linalg.norm(phi, axis=-1)
     A, B = _exp_coeffs(theta)
     K = skew(phi)
     return np.eye(3) + A[..., None, None] * K + B[..., None, None] * (K @ K)
-
-
-def _so3_exp_one(x: float, y: float, z: float) -> FloatArray | None:
-    """:func:`so3_exp` of one rotation vector, on Python floats: the same formula, several times
-    faster than the batched arrays for the filter's and the pose tracking's single rotations
-    (docs/benchmarks.md); None where its square overflows (the batched path then)."""
-    theta = math.sqrt(x * x + y * y + z * z)
-    if not math.isfinite(theta):
-        return None
-    if theta > 0.0:
-        A = math.sin(theta) / theta
-        half = math.sin(0.5 * theta) / (0.5 * theta)
-    else:
-        A = half = 1.0
-    B = 0.5 * half * half
-    xx, yy, zz, xy, xz, yz = x * x, y * y, z * z, x * y, x * z, y * z
-    return np.array(
-        [
-            [1.0 - B * (yy + zz), -A * z + B * xy, A * y + B * xz],
-            [A * z + B * xy, 1.0 - B * (xx + zz), -A * x + B * yz],
-            [-A * y + B * xz, A * x + B * yz, 1.0 - B * (xx + yy)],
-        ]
-    )
 
 
 def so3_log(R: ArrayLike) -> FloatArray:
@@ -128,21 +99,8 @@ def so3_log(R: ArrayLike) -> FloatArray:
     """
     R = np.asarray(R, dtype=np.float64)
     if R.shape == (3, 3) and np.isfinite(R).all():
-        return _so3_log_one(R.tolist())
+        return so3_log_one(R.tolist())
     return rotvec_from_quat(quat_from_rotmat(R))
-
-
-def _so3_log_one(r: list[list[float]]) -> FloatArray:
-    """:func:`so3_log` of one finite matrix (nested lists), on Python floats: the same
-    Shepperd/Markley quaternion (:func:`~gaitnet.geometry.quaternion.quat_from_rotmat_floats`)
-    and ``atan2`` (:func:`~gaitnet.geometry.quaternion.rotvec_from_quat`), several times faster
-    than the batched arrays for single rotations."""
-    w, a, b, c = quat_from_rotmat_floats(r)
-    n = math.sqrt(a * a + b * b + c * c)
-    # below _SMALL: 2 atan2(n, w) / n = (2/w)(1 − n²/(3w²) + …), as rotvec_from_quat
-    small = n < _SMALL
-    scale = (2.0 / w) * (1.0 - n * n / (3.0 * w * w)) if small else 2.0 * math.atan2(n, w) / n
-    return np.array([scale * a, scale * b, scale * c])
 
 
 def _jacobian_coeffs(theta: FloatArray) -> tuple[FloatArray, FloatArray]:

@@ -22,9 +22,10 @@ shows up as a vertical offset of the extrinsic (sub-centimetre for a relaxed sta
 The standing frames are those before the camera moves (:func:`standing_frames`); the
 standing feet the points measured over them, else the filter's landmark seen while standing
 (:func:`standing_feet`). A foot that was not seen while standing (a camera pitched up too far
-to see the feet, a foot outside the image) is placed by :func:`complete_standing_feet`: beside the other foot at the
-skeleton's stance width, or, when neither was seen, both a nominal distance behind the camera
-along its horizontal viewing direction; the extrinsic is then only as good as that guess.
+to see the feet, a foot outside the image) is placed by :func:`complete_standing_feet`: beside
+the other foot at the skeleton's stance width, or, when neither was seen, both a nominal
+distance behind the camera along its horizontal viewing direction; the extrinsic is then only
+as good as that guess.
 """
 
 from __future__ import annotations
