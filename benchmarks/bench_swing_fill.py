@@ -77,6 +77,28 @@ def _rests(
     return [(a, b) for a, b in runs if b - a + 1 >= min_frames]
 
 
+def _clip_joints(path: Path, height_m: float):
+    """The clip at :data:`FPS` and its joints by forward kinematics (the clip's rest joints,
+    else the built-in skeleton of ``height_m``)."""
+    clip = load_amass_clip(path, fps=FPS)
+    skel = (
+        from_rest_joints(clip.rest_joints)
+        if clip.rest_joints is not None
+        else builtin_skeleton(height_m)
+    )
+    return clip, forward_kinematics(skel, clip.root_orient, clip.trans, clip.joint_aa)
+
+
+def _foot_rests(
+    J: np.ndarray, side: int, rest_speed: float
+) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """The mid-foot point of ``side`` (half-way between the ankle and the foot joint) and its
+    rests (:func:`_rests` of its horizontal speed)."""
+    p = 0.5 * (J[:, ANKLES[side]] + J[:, FEET[side]])
+    speed = np.r_[np.inf, np.hypot(*np.diff(p[:, :2], axis=0).T) * FPS]
+    return p, _rests(speed, rest_speed)
+
+
 def score_clip(
     path: Path,
     height_m: float,
@@ -88,23 +110,15 @@ def score_clip(
     error (``fill``, ``line``, ``sideways``), per rest-to-rest cycle the unseen share
     (``fraction``); ``timing``: :func:`swing_fill`'s keyword arguments (default: the config's);
     ``rest_bound`` False: the rests end at their first frame for the fill (module docstring)."""
-    clip = load_amass_clip(path, fps=FPS)
-    skel = (
-        from_rest_joints(clip.rest_joints)
-        if clip.rest_joints is not None
-        else builtin_skeleton(height_m)
-    )
-    J = forward_kinematics(skel, clip.root_orient, clip.trans, clip.joint_aa)
+    clip, J = _clip_joints(path, height_m)
     t = np.arange(clip.n_frames) / FPS
     out: dict[str, list[float]] = {"fill": [], "line": [], "sideways": [], "fraction": []}
     measured = np.full((clip.n_frames, 2, 3), np.nan)
     stance: list[StanceFoot] = []
     truth = np.empty((clip.n_frames, 2, 3))
     for s, side in enumerate(SIDES):
-        p = 0.5 * (J[:, ANKLES[s]] + J[:, FEET[s]])
+        p, rests = _foot_rests(J, s, rest_speed)
         truth[:, s] = p
-        speed = np.r_[np.inf, np.hypot(*np.diff(p[:, :2], axis=0).T) * FPS]
-        rests = _rests(speed, rest_speed)
         for a, b in rests:
             measured[a : b + 1, s] = p[a : b + 1]
             last = t[b] if rest_bound else t[a]
@@ -133,19 +147,11 @@ def score_clip(
 def camera_peak_phases(path: Path, height_m: float, rest_speed: float) -> list[float]:
     """Per swing between two rests of a foot, where the virtual camera is highest, as a share
     of the time from the end of the first rest to the start of the next (module docstring)."""
-    clip = load_amass_clip(path, fps=FPS)
-    skel = (
-        from_rest_joints(clip.rest_joints)
-        if clip.rest_joints is not None
-        else builtin_skeleton(height_m)
-    )
-    J = forward_kinematics(skel, clip.root_orient, clip.trans, clip.joint_aa)
+    clip, J = _clip_joints(path, height_m)
     z = (J[:, 0] + so3_exp(clip.root_orient) @ CAMERA_IN_PELVIS_M)[:, 2]
     phases = []
     for s in range(2):
-        p = 0.5 * (J[:, ANKLES[s]] + J[:, FEET[s]])
-        speed = np.r_[np.inf, np.hypot(*np.diff(p[:, :2], axis=0).T) * FPS]
-        rests = _rests(speed, rest_speed)
+        p, rests = _foot_rests(J, s, rest_speed)
         for (_, b0), (a1, _) in zip(rests, rests[1:], strict=False):
             inside = np.arange(b0 + 1, a1)
             if len(inside) < 3:
