@@ -2,10 +2,12 @@
 
     python data/derive_swing_template.py [--subjects 6] [--seed 0]
 
-Prints the instep marker's mean progress, lift and sideways (outwards) path from heel off to
-the next foot flat (:mod:`gaitnet.sim.swing_profile`) over random subjects walking 10 m at
-0.8–1.6 m/s, at the 21 template points, as the arrays ``SWING_PROGRESS``, ``SWING_LIFT`` and
-``SWING_SIDEWAYS`` of
+Prints the mean progress, lift and sideways (outwards) path from heel off to the next foot
+flat (:mod:`gaitnet.sim.swing_profile`) of the point the pose correction is given for a foot,
+the segmenter's keypoint as the correction models it (``KEYPOINT_OFFSET_M`` from the ankle, for
+a body of ``REFERENCE_HEIGHT_M``, :mod:`gaitnet.pipeline.config`), over random subjects
+walking 10 m at 0.8–1.6 m/s, at the 21 template points, as the arrays ``SWING_PROGRESS``,
+``SWING_LIFT`` and ``SWING_SIDEWAYS`` of
 ``gaitnet/pipeline/swing_fill.py``, with their swing-to-swing spread and the heel-off share of
 the gait cycle; then the line ``span = a + b · cycle`` through the spans that lay the committed
 template best over each swing at 0.6–1.7 m/s (``SWING_SPAN_OFFSET_S``,
@@ -23,8 +25,18 @@ import argparse
 
 import numpy as np
 
+from gaitnet.pipeline.config import KEYPOINT_OFFSET_M, REFERENCE_HEIGHT_M
 from gaitnet.pipeline.swing_fill import SWING_PROGRESS, SWING_TAU
-from gaitnet.sim.swing_profile import derive_swing_span, derive_swing_template
+from gaitnet.sim.swing_profile import ShoePoint, derive_swing_span, derive_swing_template
+
+
+def keypoint() -> ShoePoint:
+    """The segmenter's keypoint as the pose correction models it: ``KEYPOINT_OFFSET_M`` (SMPL
+    axes: x outwards, y up, z forward) from the ankle, which lies in the foot's sagittal plane."""
+    outwards, up, forward = KEYPOINT_OFFSET_M
+    if outwards != 0:
+        raise ValueError("derive_swing_template: the keypoint must lie in the sagittal plane")
+    return ShoePoint(forward_m=forward, up_m=up, body_height_m=REFERENCE_HEIGHT_M)
 
 
 def _row(values: np.ndarray) -> str:
@@ -38,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.subjects < 1:
         ap.error("--subjects must be at least 1")
-    t = derive_swing_template(SWING_TAU, subjects=args.subjects, seed=args.seed)
+    t = derive_swing_template(SWING_TAU, subjects=args.subjects, seed=args.seed, point=keypoint())
     print(f"{int(t['swings'][0])} swings")
     print(f"SWING_PROGRESS = [{_row(t['progress'])}]")
     print(f"  spread (std)   [{_row(t['progress_std'])}]")
@@ -48,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  spread (std)   [{_row(t['sideways_std'])}]")
     mean, std = t["fraction"]
     print(f"heel off to next foot flat: {mean:.3f} ± {std:.3f} of the gait cycle")
-    span = derive_swing_span(SWING_TAU, SWING_PROGRESS, seed=args.seed)
+    span = derive_swing_span(SWING_TAU, SWING_PROGRESS, seed=args.seed, point=keypoint())
     print(
         f"span over {int(span['swings'])} swings at 0.6–1.7 m/s: "
         f"SWING_SPAN_OFFSET_S = {span['offset_s']:.3f}, "

@@ -154,11 +154,12 @@ def test_gap_fill_key_acts(tiny_sim_session: Path, monkeypatch) -> None:
     def fake_swing(
         t_s, measured, stance_feet, height, *, span_offset_s, span_per_cycle,
         span_contralateral_offset_s, span_per_contralateral, retime_weight, retime_max_shift_s,
-        start_delay_s,
+        start_delay_s, rest_end_lead_s,
     ):  # fmt: skip
         given.append(
             (height, span_offset_s, span_per_cycle, span_contralateral_offset_s,
-             span_per_contralateral, retime_weight, retime_max_shift_s, start_delay_s)
+             span_per_contralateral, retime_weight, retime_max_shift_s, start_delay_s,
+             rest_end_lead_s)
         )  # fmt: skip
         out = np.full(np.shape(measured), np.nan)
         out[half, 1] = marker
@@ -176,9 +177,10 @@ def test_gap_fill_key_acts(tiny_sim_session: Path, monkeypatch) -> None:
         "pipeline.swing_retime_weight=0.25",
         "pipeline.swing_retime_max_shift_s=0.05",
         "pipeline.swing_start_delay_s=0.03",
+        "pipeline.swing_rest_end_lead_s=0.07",
     ]
     infer.reconstruct(obs, load_config(InferConfig, None, keys), predictor)
-    assert given == [(1.8, 0.2, 0.6, 0.1, 1.3, 0.25, 0.05, 0.03)]  # the keys reach the fill
+    assert given == [(1.8, 0.2, 0.6, 0.1, 1.3, 0.25, 0.05, 0.03, 0.07)]  # the keys reach the fill
     assert len(calls) == 2
     second = np.array([m.foot_W for m in calls[1]])
     np.testing.assert_array_equal(second[half, 1], np.broadcast_to(marker, (len(half), 3)))

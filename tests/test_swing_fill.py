@@ -10,6 +10,7 @@ from gaitnet.pipeline.swing_fill import (
     MIN_SPAN_S,
     SWING_LIFT,
     SWING_PROGRESS,
+    SWING_REST_END_LEAD_S,
     SWING_SIDEWAYS,
     SWING_SPAN_CONTRALATERAL_OFFSET_S,
     SWING_SPAN_OFFSET_S,
@@ -59,9 +60,9 @@ def _walk(
 def test_known_answer_at_heel_off_mid_swing_and_landing() -> None:
     # rest 1 at x = 0 from 0 to 0.6 s, rest 2 at x = 1.2 m from 1.2 s: cycle 1.2 s, the swing
     # starts span(1.2) ≈ 0.87 s before the second foot flat → 0.33 s, clamped to the last rest
-    # frame 0.6 s
+    # frame 0.6 s (with no lead before it)
     t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)])
-    out = swing_fill(t, measured, feet, H)
+    out = swing_fill(t, measured, feet, H, rest_end_lead_s=0.0)
     gap = (t > 0.6 + 1e-9) & (t < 1.2 - 1e-9)
     assert np.isfinite(out[gap, 0]).all()
     assert np.isnan(out[~gap, 0]).all() and np.isnan(out[:, 1]).all()  # right: no landmarks
@@ -95,7 +96,7 @@ def test_the_swing_bows_away_from_the_midline(side: int, heading_deg: float) -> 
                    R[:2, :2] @ f.xy, f.std_xy, f.n_observations)
         for f in feet
     ]  # fmt: skip
-    out = swing_fill(t, turned, feet, H)
+    out = swing_fill(t, turned, feet, H, rest_end_lead_s=0.0)
     k = int(round(0.9 * FPS))
     i = int(np.flatnonzero(np.isclose(SWING_TAU, 0.5))[0])
     ahead = R[:2, 0]
@@ -106,10 +107,11 @@ def test_the_swing_bows_away_from_the_midline(side: int, heading_deg: float) -> 
 
 
 def test_plan_says_what_set_each_swings_start() -> None:
-    # the case above and the one below: the last rest frame (0.6 s) after the timed start
-    # (1.2 − span(1.2)), and the timed start (1.6 − span(1.6)) after the last rest frame (0.2 s)
+    # the case above and the one below: the last rest frame (0.6 s, less the lead) after the
+    # timed start (1.2 − span(1.2)), and the timed start (1.6 − span(1.6)) after the last rest
+    # frame (0.2 s)
     for rests, heel_off, from_rest_end in (
-        ([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)], 0.6, True),
+        ([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)], 0.6 - SWING_REST_END_LEAD_S, True),
         ([(0.0, 0.2, 0.0), (1.6, 2.5, 1.0)], 1.6 - _span(1.6), False),
     ):
         t, measured, feet = _walk(rests)
@@ -222,15 +224,47 @@ def test_the_start_delay_moves_a_timed_start_and_not_a_rest_end() -> None:
     t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)])
     for d in (0.0, 0.1):
         (plan,) = plan_swings(t, measured, feet, start_delay_s=d)
-        assert plan.heel_off_s == pytest.approx(0.6, abs=1e-12) and plan.from_rest_end
-    # the rest seen until 0.4 s: the line (1.2 − 0.875 = 0.325 s) lies before it, delayed by
-    # 0.1 s after it, and then the line sets the start
+        assert plan.heel_off_s == pytest.approx(0.6 - SWING_REST_END_LEAD_S, abs=1e-12)
+        assert plan.from_rest_end
+    # the rest seen until 0.4 s: the line (1.2 − 0.874 = 0.326 s) lies before its bound
+    # (0.35 s), delayed by 0.1 s after it, and then the line sets the start
     t, measured, feet = _walk([(0.0, 0.4, 0.0), (1.2, 2.0, 1.2)])
     (plan,) = plan_swings(t, measured, feet, start_delay_s=0.0)
-    assert plan.heel_off_s == pytest.approx(0.4, abs=1e-12) and plan.from_rest_end
+    assert plan.heel_off_s == pytest.approx(0.4 - SWING_REST_END_LEAD_S, abs=1e-12)
+    assert plan.from_rest_end
     (plan,) = plan_swings(t, measured, feet, start_delay_s=0.1)
     assert plan.heel_off_s == pytest.approx(1.2 - _line(1.2) + 0.1, abs=1e-12)
     assert not plan.from_rest_end
+
+
+def test_the_rest_end_lead_bounds_the_start() -> None:
+    # the rest's last frame (0.6 s) less the lead bounds the start while that lies after the
+    # line's start (1.2 − span(1.2) ≈ 0.33 s); a lead past it leaves the line's start; the key
+    # reaches the plan through the config
+    from gaitnet.config import load_config
+    from gaitnet.pipeline.config import InferConfig
+
+    t, measured, feet = _walk([(0.0, 0.6, 0.0), (1.2, 2.0, 1.2)])
+    line = 1.2 - _line(1.2)
+    for lead, start, from_rest_end in (
+        (0.0, 0.6, True),
+        (0.05, 0.55, True),
+        (0.2, 0.4, True),
+        (0.3, line, False),
+    ):
+        (plan,) = plan_swings(t, measured, feet, rest_end_lead_s=lead)
+        assert plan.heel_off_s == pytest.approx(start, abs=1e-12)
+        assert plan.from_rest_end == from_rest_end
+    cfg = load_config(InferConfig, None, ["pipeline.swing_rest_end_lead_s=0.2"])
+    (plan,) = plan_swings(t, measured, feet, **cfg.pipeline.swing_timing())
+    assert plan.heel_off_s == pytest.approx(0.4, abs=1e-12)
+    assert load_config(InferConfig, None, []).pipeline.swing_rest_end_lead_s == 0.05
+    a = swing_fill(t, measured, feet, H, rest_end_lead_s=0.0)
+    b = swing_fill(t, measured, feet, H, rest_end_lead_s=0.2)
+    gap = np.isfinite(a[:, 0, 0])
+    np.testing.assert_array_equal(gap, np.isfinite(b[:, 0, 0]))  # the same frames, filled
+    assert (b[gap, 0, 0] >= a[gap, 0, 0] - 1e-12).all()  # an earlier start: further along
+    assert (b[gap, 0, 0] > a[gap, 0, 0] + 1e-3).any()
 
 
 def test_a_swing_starts_before_it_lands() -> None:
@@ -294,15 +328,15 @@ def test_a_long_standing_start_is_filled_only_with_a_typical_cycle() -> None:
 
 def test_two_pairs_keep_their_own_cycles() -> None:
     # a standing start and one stride: too few pairs for a typical cycle, so each pair keeps
-    # its own and heel off is clamped to the last rest frame (1.4 s, then 3.3 s)
+    # its own and heel off is clamped to the last rest frame less the lead (1.4 s, then 3.3 s)
     t, measured, feet = _walk([(0.0, 1.4, 0.0), (2.5, 3.3, 1.2), (3.7, 4.5, 2.4)], n=150)
     out = swing_fill(t, measured, feet, H)
-    k = int(round(2.0 * FPS))
-    expected = np.interp((2.0 - 1.4) / 1.1, SWING_TAU, SWING_PROGRESS) * 1.2
-    np.testing.assert_allclose(out[k, 0, 0], expected, atol=1e-12)
-    k = int(round(3.5 * FPS))
-    expected = 1.2 + np.interp((3.5 - 3.3) / 0.4, SWING_TAU, SWING_PROGRESS) * 1.2
-    np.testing.assert_allclose(out[k, 0, 0], expected, atol=1e-12)
+    for k_s, (rest_end, landing, x0) in ((2.0, (1.4, 2.5, 0.0)), (3.5, (3.3, 3.7, 1.2))):
+        start = rest_end - SWING_REST_END_LEAD_S
+        expected = np.interp((k_s - start) / (landing - start), SWING_TAU, SWING_PROGRESS)
+        np.testing.assert_allclose(
+            out[int(round(k_s * FPS)), 0, 0], x0 + 1.2 * expected, atol=1e-12
+        )
 
     with pytest.raises(ValueError, match="swing_fill"):
         swing_fill(t, measured[:, :, :2], feet, H)
@@ -373,12 +407,28 @@ def test_template_shape() -> None:
     assert len(SWING_TAU) == len(SWING_PROGRESS) == len(SWING_LIFT) == len(SWING_SIDEWAYS)
 
 
+def _keypoint():
+    """The point the committed template follows, as ``data/derive_swing_template.py`` gives
+    it (the keypoint of ``correction.marker_offset_m``'s default)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "data" / "derive_swing_template.py"
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.keypoint()
+
+
 def test_committed_template_is_the_gait_generators() -> None:
     """A fresh derivation on fewer walks (other subjects) agrees with the committed table
     within a fraction of the swing-to-swing spread."""
     from gaitnet.sim.swing_profile import derive_swing_template
 
-    fresh = derive_swing_template(SWING_TAU, speeds_mps=(0.8, 1.2, 1.6), subjects=2, seed=7)
+    fresh = derive_swing_template(
+        SWING_TAU, speeds_mps=(0.8, 1.2, 1.6), subjects=2, seed=7, point=_keypoint()
+    )
     assert fresh["swings"][0] > 40
     spread = np.maximum(fresh["progress_std"], 0.01)
     assert (np.abs(fresh["progress"] - SWING_PROGRESS) < spread).all()
@@ -394,7 +444,12 @@ def test_committed_span_line_is_the_gait_generators() -> None:
     from gaitnet.sim.swing_profile import derive_swing_span
 
     fresh = derive_swing_span(
-        SWING_TAU, SWING_PROGRESS, speeds_mps=(0.6, 0.9, 1.2, 1.5, 1.7), subjects=2, seed=7
+        SWING_TAU,
+        SWING_PROGRESS,
+        speeds_mps=(0.6, 0.9, 1.2, 1.5, 1.7),
+        subjects=2,
+        seed=7,
+        point=_keypoint(),
     )
     assert fresh["swings"] > 60
     for cycle in (1.0, 1.8):
@@ -420,6 +475,8 @@ def test_committed_span_line_is_the_gait_generators() -> None:
         ("swing_retime_max_shift_s", "-0.1", r"swing_retime_max_shift_s must be within"),
         ("swing_start_delay_s", "0.3", r"swing_start_delay_s must be within"),
         ("swing_start_delay_s", "-0.25", r"swing_start_delay_s must be within"),
+        ("swing_rest_end_lead_s", "-0.01", r"swing_rest_end_lead_s must be within"),
+        ("swing_rest_end_lead_s", "0.4", r"swing_rest_end_lead_s must be within"),
     ],
 )
 def test_swing_timing_keys_are_checked(key: str, value: str, message: str) -> None:
@@ -470,4 +527,4 @@ def test_the_start_read_where_the_foot_is_seen_again() -> None:
         for p in plan_swings(t, measured, feet + right, retime_weight=1.0)
         if p.first and p.side == 0
     ]
-    assert first.heel_off_s == pytest.approx(0.6)
+    assert first.heel_off_s == pytest.approx(0.6 - SWING_REST_END_LEAD_S)

@@ -17,6 +17,7 @@ from typing import ClassVar, Literal
 from gaitnet.checks import check_int_range, check_range
 from gaitnet.pipeline.pose_types import PoseCorrectionParams
 from gaitnet.pipeline.swing_fill import (
+    SWING_REST_END_LEAD_S,
     SWING_RETIME_MAX_SHIFT_S,
     SWING_RETIME_WEIGHT,
     SWING_SPAN_CONTRALATERAL_OFFSET_S,
@@ -146,6 +147,10 @@ class PipelineParams:
     """For ``gap_fill: swing``: the start that ``swing_span_*`` give is laid this much later
     [s]; 0 by default: 0.05 s fills simulated sessions better and real walks worse
     (:mod:`gaitnet.pipeline.swing_fill`, docs/pipeline.md)."""
+    swing_rest_end_lead_s: float = SWING_REST_END_LEAD_S
+    """For ``gap_fill: swing``: the start is never earlier than this before the last frame the
+    filter saw the foot resting [s] (its landmark outlasts heel off, the rising heel still giving
+    a stationary point; :mod:`gaitnet.pipeline.swing_fill`, docs/pipeline.md)."""
     swing_retime_weight: float = SWING_RETIME_WEIGHT
     """For ``gap_fill: swing`` (not a foot's first pair): where the foot is seen again before it
     lands, the template's time at its measured progress (0.5–0.97 of the way) gives the swing's
@@ -182,6 +187,7 @@ class PipelineParams:
                 self.swing_span_per_contralateral, 0.5, 2.5, " (or 0: off)",
             )  # fmt: skip
         check_range("pipeline.swing_start_delay_s", self.swing_start_delay_s, -0.2, 0.2, " s")
+        check_range("pipeline.swing_rest_end_lead_s", self.swing_rest_end_lead_s, 0.0, 0.3, " s")
         check_range("pipeline.swing_retime_weight", self.swing_retime_weight, 0.0, 1.0)
         check_range(
             "pipeline.swing_retime_max_shift_s", self.swing_retime_max_shift_s, 0.0, 0.5, " s"
@@ -212,6 +218,7 @@ class PipelineParams:
             "retime_weight": self.swing_retime_weight,
             "retime_max_shift_s": self.swing_retime_max_shift_s,
             "start_delay_s": self.swing_start_delay_s,
+            "rest_end_lead_s": self.swing_rest_end_lead_s,
         }
 
 

@@ -38,17 +38,24 @@ walking foot has a stereotyped shape, which this module lays between the two res
   sessions 0.05 s lowers the filled frames' error, on real walks (the CMU walks of
   ``benchmarks/bench_swing_fill.py``) it raises it, because the generator's swings start
   later against the next foot flat than real ones (docs/pipeline.md, *The start delay*);
-  never before the last frame the filter saw the foot resting, and at least
-  :data:`MIN_SPAN_S` before the landing;
+  never earlier than ``pipeline.swing_rest_end_lead_s`` (:data:`SWING_REST_END_LEAD_S`, 0.05 s)
+  before the last frame the filter saw the foot resting (the filter's landmark outlasts heel
+  off: the rising heel still gives it a stationary point), and at least :data:`MIN_SPAN_S`
+  before the landing;
 - ``ρ`` (0 → 1, :data:`SWING_PROGRESS`), ``λ`` (:data:`SWING_LIFT`) and ``μ``
-  (:data:`SWING_SIDEWAYS`; ``λ``, ``μ`` fractions of the body height ``H``): the mean path of
-  the instep marker from heel off to the next foot flat over the simulator's walks at
-  0.8–1.6 m/s (458 swings of 30 subjects; derived by ``data/derive_swing_template.py`` with
+  (:data:`SWING_SIDEWAYS`; ``λ``, ``μ`` fractions of the body height ``H``): the mean path
+  from heel off to the next foot flat, over the simulator's walks at 0.8–1.6 m/s (458 swings
+  of 30 subjects), of the point the pose correction is given for a foot: the segmenter's
+  keypoint as the correction models it, ``correction.marker_offset_m``'s default
+  (:data:`gaitnet.pipeline.config.KEYPOINT_OFFSET_M`) from the ankle. Until 2026-11-28 it was
+  the instep marker's path, which lies up to 0.017 H higher at τ 0.3–0.6: the correction then
+  put the keypoint there and the foot too high (docs/pipeline.md). Derived by
+  ``data/derive_swing_template.py`` with
   :func:`gaitnet.sim.swing_profile.derive_swing_template`, and checked against a fresh
-  derivation by a test): forward, up, and outwards along ``n̂``, the horizontal unit vector
+  derivation by a test: forward, up, and outwards along ``n̂``, the horizontal unit vector
   square to ``p₁ − p₀`` away from the body's midline (to the left of the walking direction
   for the left foot, to the right for the right); the foot bows outwards by up to 0.018 H
-  (3.3 cm at 1.8 m) in mid-swing, on the CMU walks of ``benchmarks/bench_swing_fill.py`` by
+  (3.2 cm at 1.8 m) in mid-swing, on the CMU walks of ``benchmarks/bench_swing_fill.py`` by
   about half that (docs/pipeline.md); on real walks the template fits less well than on
   simulated ones (docs/pipeline.md, *Limits*).
 
@@ -59,7 +66,7 @@ ahead of the foot, and near the landing the template hardly moves), the template
 progress gives the start for the landing fixed; the start moves ``pipeline.swing_retime_weight``
 (:data:`SWING_RETIME_WEIGHT`) of the way to their median, at most
 ``pipeline.swing_retime_max_shift_s`` (:data:`SWING_RETIME_MAX_SHIFT_S`), also to before the
-last frame the filter saw the foot resting. Averaging the two
+bound that the foot's last resting frame sets. Averaging the two
 estimates lowered the filled frames' error on the 7 held-out and the 23 other sessions of the
 filter's protocol alike (docs/pipeline.md); trusting the points alone raised it.
 
@@ -96,6 +103,7 @@ __all__ = [
     "STRIDE_OUTLIER",
     "SWING_LIFT",
     "SWING_PROGRESS",
+    "SWING_REST_END_LEAD_S",
     "SWING_RETIME_MAX_SHIFT_S",
     "SWING_RETIME_WEIGHT",
     "SWING_SIDEWAYS",
@@ -113,24 +121,25 @@ __all__ = [
 SWING_TAU = np.linspace(0.0, 1.0, 21)
 # fmt: off
 SWING_PROGRESS = np.array([
-    0.0, 0.0003, 0.0026, 0.0087, 0.0206, 0.0397, 0.0654, 0.0973, 0.1392, 0.1968, 0.2803,
-    0.3942, 0.5307, 0.6718, 0.7967, 0.8898, 0.9467, 0.9750, 0.9893, 0.9981, 1.0,
+    0.0, 0.0003, 0.0023, 0.0075, 0.0173, 0.0326, 0.0528, 0.0784, 0.1168, 0.1741, 0.2607,
+    0.3792, 0.5200, 0.6654, 0.7944, 0.8901, 0.9477, 0.9760, 0.9902, 0.9983, 1.0,
 ])
 SWING_LIFT = np.array([
-    0.0, 0.0004, 0.0032, 0.0096, 0.0190, 0.0292, 0.0371, 0.0414, 0.0462, 0.0503, 0.0530,
-    0.0531, 0.0508, 0.0480, 0.0451, 0.0400, 0.0318, 0.0220, 0.0113, 0.0023, 0.0,
+    0.0, 0.0003, 0.0023, 0.0067, 0.0131, 0.0198, 0.0243, 0.0263, 0.0294, 0.0332, 0.0369,
+    0.0390, 0.0394, 0.0402, 0.0423, 0.0429, 0.0386, 0.0287, 0.0147, 0.0030, 0.0,
 ])
 SWING_SIDEWAYS = np.array([
-    0.0, 0.0, 0.0002, 0.0006, 0.0013, 0.0026, 0.0042, 0.0062, 0.0087, 0.0116, 0.0148,
-    0.0175, 0.0182, 0.0161, 0.0113, 0.0053, 0.0005, -0.0012, -0.0006, -0.0001, 0.0,
+    0.0, 0.0, 0.0001, 0.0005, 0.0011, 0.0021, 0.0034, 0.0050, 0.0073, 0.0102, 0.0136,
+    0.0166, 0.0176, 0.0157, 0.0111, 0.0053, 0.0006, -0.0011, -0.0006, -0.0001, 0.0,
 ])
 # fmt: on
-SWING_SPAN_OFFSET_S = 0.138  # span = a + b · cycle [s] (derive_swing_span, seed 0)
-SWING_SPAN_PER_CYCLE = 0.614
+SWING_SPAN_OFFSET_S = 0.146  # span = a + b · cycle [s] (derive_swing_span, seed 0)
+SWING_SPAN_PER_CYCLE = 0.607
 # span = c + d · (FF' − the other foot's FF between) [s] (derive_swing_span, seed 0)
-SWING_SPAN_CONTRALATERAL_OFFSET_S = 0.140
-SWING_SPAN_PER_CONTRALATERAL = 1.227
+SWING_SPAN_CONTRALATERAL_OFFSET_S = 0.147
+SWING_SPAN_PER_CONTRALATERAL = 1.212
 SWING_START_DELAY_S = 0.0  # the timing lines' start laid this much later [s] (docstring)
+SWING_REST_END_LEAD_S = 0.05  # the start at most this long before the rest's last frame [s]
 SWING_RETIME_WEIGHT = 0.5  # share of the start read where the foot is seen again (0: off)
 SWING_RETIME_MAX_SHIFT_S = 0.1  # that start kept within this of the timing line's [s]
 RETIME_PROGRESS = (0.5, 0.97)  # measured progress the template's time is read at
@@ -191,6 +200,7 @@ def plan_swings(
     retime_weight: float = SWING_RETIME_WEIGHT,
     retime_max_shift_s: float = SWING_RETIME_MAX_SHIFT_S,
     start_delay_s: float = SWING_START_DELAY_S,
+    rest_end_lead_s: float = SWING_REST_END_LEAD_S,
 ) -> list[SwingPlan]:
     """The swings :func:`swing_fill` fills: the left foot's in time order, then the right
     foot's. ``t_s`` (n,) frame times, ``measured`` (n, 2, 3) the measured foot points (left,
@@ -244,7 +254,8 @@ def plan_swings(
         window = (t_s > w.before.t_last_s) & (t_s < w.after.t_first_s) & ~seen[:, w.side]
         if not window.any():
             continue
-        heel_off = max(timed, w.before.t_last_s)
+        rest_bound = w.before.t_last_s - rest_end_lead_s
+        heel_off = max(timed, rest_bound)
         if retime_weight > 0 and not w.first:
             seen_again = _seen_again_start(t_s, measured[:, w.side], seen[:, w.side], w, heel_off)
             if np.isfinite(seen_again):
@@ -259,7 +270,7 @@ def plan_swings(
                 heel_off_s=heel_off,
                 landing_s=landing,
                 first=w.first,
-                from_rest_end=w.before.t_last_s > timed,
+                from_rest_end=rest_bound > timed,
                 window=window,
             )
         )

@@ -1,25 +1,27 @@
-"""The instep marker's path from heel off to the next foot flat, in generated walks.
+"""A point of the shoe's path from heel off to the next foot flat, in generated walks.
 
 The pipeline fills a foot's unseen swing from a template of this path
 (:mod:`gaitnet.pipeline.swing_fill`); this module measures it on the simulator's walks so the
 template's numbers can be re-derived (``data/derive_swing_template.py``, and a test that
-checks the committed table against a fresh derivation).
+checks the committed table against a fresh derivation). The point is a :class:`ShoePoint`
+(the pipeline's: the segmenter's keypoint as the pose correction models it, a fixed point of
+the foot ahead of and below the ankle) or, without one, the instep marker
+(:meth:`gaitnet.sim.gait.Walk.marker_points`).
 
 For one foot between heel off ``HO`` of stance ``i`` and foot flat ``FF'`` of stance
-``i + 1``, with ``m(t)`` the instep marker (:meth:`gaitnet.sim.gait.Walk.marker_points`),
-``τ = (t − HO) / (FF' − HO)``, ``d = m(FF') − m(HO)`` and ``u`` the horizontal unit vector of
-``d``:
+``i + 1``, with ``m(t)`` the point, ``τ = (t − HO) / (FF' − HO)``, ``d = m(FF') − m(HO)`` and
+``u`` the horizontal unit vector of ``d``:
 
 - progress ``ρ(τ) = (m(t) − m(HO))·u / |d_xy|`` (0 → 1 along the step);
 - lift ``λ(τ) = (m_z(t) − m_z(HO) − ρ(τ) d_z) / H`` (height above the straight line between
   the two rests, as a fraction of the body height ``H``);
 - sideways ``μ(τ) = ±(m(t) − m(HO))·n / H`` with ``n`` the horizontal unit vector left of
-  ``u``, + for the left foot and − for the right: how far the marker strays from the straight
+  ``u``, + for the left foot and − for the right: how far the point strays from the straight
   line away from the body's midline (outwards), as a fraction of ``H``.
 
 The fill also needs the template's time span ``FF' − t₀`` for a gait cycle ``T`` (``FF' − FF``
 of one foot): :func:`swing_spans` fits, per swing, the span ``s`` for which the template laid
-over ``[FF' − s, FF']`` best matches the marker's progress from ``FF`` to ``FF'`` (least
+over ``[FF' − s, FF']`` best matches the point's progress from ``FF`` to ``FF'`` (least
 squares), and :func:`derive_swing_span` fits ``s = a + b T`` over walks at all the
 generator's speeds (slow walking rolls longer over the forefoot before the swing, so the span
 is a smaller share of a long cycle than of a short one). It also fits ``s = c + d C`` with
@@ -32,6 +34,7 @@ over the generator's swings).
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -40,44 +43,81 @@ from gaitnet.sim.gait import GaitConfig, Walk, generate_walk
 from gaitnet.sim.scene import SIDES
 from gaitnet.sim.subject import sample_subject
 
-__all__ = ["derive_swing_span", "derive_swing_template", "swing_profiles", "swing_spans"]
+__all__ = [
+    "ShoePoint",
+    "derive_swing_span",
+    "derive_swing_template",
+    "swing_profiles",
+    "swing_spans",
+]
 
 
-def _swings(walk: Walk) -> Iterator[tuple[int, float, float, float]]:
+@dataclass(frozen=True)
+class ShoePoint:
+    """A fixed point of the foot in its sagittal plane: ``forward_m`` ahead of the ankle joint
+    along the sole and ``up_m`` above it (negative: below), for a body of ``body_height_m``,
+    scaled by each subject's height (the pose correction's foot offsets are given that way,
+    :mod:`gaitnet.pipeline.config`)."""
+
+    forward_m: float
+    up_m: float
+    body_height_m: float
+
+    def __post_init__(self) -> None:
+        if not np.isfinite([self.forward_m, self.up_m, self.body_height_m]).all() or not (
+            self.body_height_m > 0
+        ):
+            raise ValueError(f"ShoePoint: finite offsets and a positive height needed, got {self}")
+
+    def points(self, walk: Walk, t: np.ndarray) -> np.ndarray:
+        """The point of both feet of ``walk`` at times ``t``, (len(t), 2, 3)."""
+        scale = walk.subject.height_m / self.body_height_m
+        offset = scale * np.array([self.forward_m, 0.0, self.up_m])  # shoe frame: x fwd, z up
+        return walk.shoe_points(t, walk.subject.ankle_in_shoe() + offset)[:, :, 0]
+
+
+def _points(walk: Walk, t: np.ndarray, point: ShoePoint | None) -> np.ndarray:
+    """Both feet's ``point`` (the instep marker when None) at times ``t``, (len(t), 2, 3)."""
+    return walk.marker_points(t) if point is None else point.points(walk, t)
+
+
+def _swings(walk: Walk, point: ShoePoint | None) -> Iterator[tuple[int, float, float, float]]:
     """``(foot, FF, HO, FF')`` of every swing of ``walk`` between two foot flats of one foot
-    whose instep marker moves at least 0.2 m (a shorter move is a shuffle, not a swing)."""
+    whose ``point`` moves at least 0.2 m (a shorter move is a shuffle, not a swing)."""
     for s, side in enumerate(SIDES):
         ev = walk.events[side]
         for i in range(len(ev.ho_s) - 1):
             ff0, ho, ff1 = ev.ff_s[i], ev.ho_s[i], ev.ff_s[i + 1]
             if not np.isfinite([ff0, ho, ff1]).all() or not ff0 < ho < ff1:
                 continue
-            d = np.diff(walk.marker_points(np.array([ho, ff1]))[:, s], axis=0)[0]
+            d = np.diff(_points(walk, np.array([ho, ff1]), point)[:, s], axis=0)[0]
             if np.hypot(d[0], d[1]) >= 0.2:
                 yield s, float(ff0), float(ho), float(ff1)
 
 
-def _progress(walk: Walk, foot: int, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Progress (len(t),) of ``foot``'s marker at times ``t`` along its move from ``t[0]`` to
-    ``t[-1]`` (module docstring), and the marker's points (len(t), 3)."""
-    m = walk.marker_points(t)[:, foot]
+def _progress(
+    walk: Walk, foot: int, t: np.ndarray, point: ShoePoint | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Progress (len(t),) of ``foot``'s ``point`` at times ``t`` along its move from ``t[0]``
+    to ``t[-1]`` (module docstring), and the point's positions (len(t), 3)."""
+    m = _points(walk, t, point)[:, foot]
     d = m[-1] - m[0]
     step = float(np.hypot(d[0], d[1]))
     return (m - m[0]) @ (np.array([d[0], d[1], 0.0]) / step) / step, m
 
 
 def swing_profiles(
-    walk: Walk, tau: np.ndarray
+    walk: Walk, tau: np.ndarray, point: ShoePoint | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(progress, lift, sideways, fraction)`` of every swing of ``walk`` (module docstring)
-    at ``tau``: progress, lift and sideways (m, len(tau)); fraction (m,): ``(FF' − HO) / (FF' −
-    FF)``, the share of the gait cycle (foot flat to foot flat) that heel off precedes the next
-    foot flat by."""
+    at ``tau``, for ``point`` (None: the instep marker): progress, lift and sideways (m,
+    len(tau)); fraction (m,): ``(FF' − HO) / (FF' − FF)``, the share of the gait cycle (foot
+    flat to foot flat) that heel off precedes the next foot flat by."""
     tau = np.asarray(tau, dtype=np.float64)
     progress, lift, sideways, fraction = [], [], [], []
     height = walk.subject.height_m
-    for s, ff0, ho, ff1 in _swings(walk):
-        rho, m = _progress(walk, s, ho + tau * (ff1 - ho))
+    for s, ff0, ho, ff1 in _swings(walk, point):
+        rho, m = _progress(walk, s, ho + tau * (ff1 - ho), point)
         z = m[:, 2]
         d = m[-1, :2] - m[0, :2]
         outwards = np.array([-d[1], d[0]]) / np.hypot(d[0], d[1]) * (1.0 if s == 0 else -1.0)
@@ -97,18 +137,20 @@ def derive_swing_template(
     subjects: int = 6,
     seed: int = 0,
     walk_length_m: float = 10.0,
+    point: ShoePoint | None = None,
 ) -> dict[str, np.ndarray]:
-    """Mean and spread of :func:`swing_profiles` over ``subjects`` random subjects walking
-    ``walk_length_m`` at each of ``speeds_mps`` (the simulator's default gait otherwise):
-    ``progress``, ``lift``, ``sideways`` (len(tau)), their standard deviations
-    ``progress_std``, ``lift_std``, ``sideways_std``, and ``fraction`` (mean, std)."""
+    """Mean and spread of :func:`swing_profiles` of ``point`` (None: the instep marker) over
+    ``subjects`` random subjects walking ``walk_length_m`` at each of ``speeds_mps`` (the
+    simulator's default gait otherwise): ``progress``, ``lift``, ``sideways`` (len(tau)), their
+    standard deviations ``progress_std``, ``lift_std``, ``sideways_std``, and ``fraction``
+    (mean, std)."""
     rng = np.random.default_rng(seed)
     parts: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
     for speed in speeds_mps:
         cfg = GaitConfig(speed_mps=float(speed), walk_length_m=float(walk_length_m))
         for _ in range(subjects):
             walk = generate_walk(sample_subject(rng), cfg, rng)
-            parts.append(swing_profiles(walk, tau))
+            parts.append(swing_profiles(walk, tau, point))
     progress, lift, sideways, fraction = (np.concatenate(part) for part in zip(*parts, strict=True))
     return {
         "progress": progress.mean(axis=0),
@@ -131,18 +173,23 @@ def _other_foot_flat(walk: Walk, foot: int, ff0: float, ff1: float) -> float:
 
 
 def swing_spans(
-    walk: Walk, tau: np.ndarray, progress: np.ndarray, samples: int = 100
+    walk: Walk,
+    tau: np.ndarray,
+    progress: np.ndarray,
+    samples: int = 100,
+    point: ShoePoint | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(cycles, spans, contralateral)`` (m,) of every swing of ``walk``: the cycle
+    """``(cycles, spans, contralateral)`` (m,) of every swing of ``walk`` (the progress of
+    ``point``, None: the instep marker): the cycle
     ``FF' − FF``, the span ``s`` in ``[0.3, 1] · cycle`` minimising ``Σ (ρ̂(τ_k) − ρ(t_k))²``
     over ``samples`` times ``t_k`` from ``FF`` to ``FF'``, with ``ρ̂`` the template
     ``progress`` at ``tau`` and ``τ_k = clip((t_k − FF' + s) / s, 0, 1)``, and ``FF' − FF_c``
     (NaN where the other foot has no single foot flat between ``FF`` and ``FF'``; module
     docstring)."""
     cycles, spans, contralateral = [], [], []
-    for s, ff0, _, ff1 in _swings(walk):
+    for s, ff0, _, ff1 in _swings(walk, point):
         t = np.linspace(ff0, ff1, samples)
-        rho, _ = _progress(walk, s, t)
+        rho, _ = _progress(walk, s, t, point)
 
         def cost(span: float, t: np.ndarray = t, rho: np.ndarray = rho, ff1: float = ff1) -> float:
             fit = np.interp(np.clip((t - ff1 + span) / span, 0.0, 1.0), tau, progress)
@@ -163,9 +210,11 @@ def derive_swing_span(
     subjects: int = 5,
     seed: int = 0,
     walk_length_m: float = 10.0,
+    point: ShoePoint | None = None,
 ) -> dict[str, float]:
     """The line ``span = offset_s + per_cycle · cycle`` fitted (least squares) to
-    :func:`swing_spans` over ``subjects`` random subjects walking ``walk_length_m`` at each of
+    :func:`swing_spans` of ``point`` (None: the instep marker), with the template
+    ``progress`` at ``tau``, over ``subjects`` random subjects walking ``walk_length_m`` at each of
     ``speeds_mps`` (the generator's whole range by default): ``offset_s``, ``per_cycle``, the
     residual's standard deviation ``residual_s`` and, for comparison, that of the best line
     through the origin (``span = c · cycle``) ``proportional_residual_s``, and ``swings``; and
@@ -177,7 +226,8 @@ def derive_swing_span(
     for speed in speeds_mps:
         cfg = GaitConfig(speed_mps=float(speed), walk_length_m=float(walk_length_m))
         for _ in range(subjects):
-            c, s, o = swing_spans(generate_walk(sample_subject(rng), cfg, rng), tau, progress)
+            walk = generate_walk(sample_subject(rng), cfg, rng)
+            c, s, o = swing_spans(walk, tau, progress, point=point)
             cycles.append(c)
             spans.append(s)
             others.append(o)
