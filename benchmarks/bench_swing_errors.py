@@ -7,12 +7,15 @@ runs with the default config (``--set`` overrides), and two things are compared 
 1. **Timing of each swing** (:func:`gaitnet.pipeline.swing_fill.plan_swings`, the feet's
    pairs but their first): its start against the true heel off of the rest it leaves and its
    landing (the landmark's first frame) against the true foot flat (``events.csv``), per side;
-   with the share of swings whose start the filter's last sight of the foot resting set
+   with the share of swings whose start the bound of the foot's last resting frame set
    (``from_rest_end``: the timing line put it earlier), and their start's error apart; and
-   its start against the start that lays the template best over the true path (the swing's
-   filled frames, its landing fixed, the true resting marker points as its rests: mean |·|
-   of the progress along the step, over starts 2 ms apart), which is the start the filled
-   frames' error depends on (heel off varies between subjects more than the swing does).
+   its start against the start that lays the template best over the true path of the point
+   the template follows (the keypoint as the pose correction models it, ankle +
+   ``G_ank`` · ``KEYPOINT_OFFSET_M`` on the true pose of ``groundtruth/joints.npz``; over the
+   swing's filled frames, its landing fixed, the true resting points as its rests: the
+   least mean |·| of the progress along the step, over starts 2 ms apart), which is the
+   start the filled frames' error depends on (heel off varies between subjects more than the
+   swing does).
 2. **Error of the output's filled frames** (``foot_nmate_filled_m``'s frames and alignment:
    :mod:`gaitnet.evaluation.feet`), per side, split along the walking direction (start to end
    of the true path), across it (positive: to the left) and vertically: mean and mean |·| in
@@ -31,14 +34,16 @@ import csv
 from pathlib import Path
 
 import numpy as np
+import yaml
 from bench_infer import cached_observations
 
 from gaitnet.config import load_config
 from gaitnet.errors import InputError, SessionError
 from gaitnet.evaluation.feet import read_feet
 from gaitnet.evaluation.metrics import align_yaw_translation, match_times
+from gaitnet.geometry.rotation import so3_exp
 from gaitnet.motion.onnx_runtime import OnnxPredictor
-from gaitnet.pipeline.config import InferConfig
+from gaitnet.pipeline.config import KEYPOINT_OFFSET_M, REFERENCE_HEIGHT_M, InferConfig
 from gaitnet.pipeline.infer import default_predictor_path, reconstruct
 from gaitnet.pipeline.swing_fill import (
     MIN_SPAN_S,
@@ -75,6 +80,28 @@ def true_events(session_dir: Path) -> dict[str, list[tuple[float, float]]]:
     return out
 
 
+def true_keypoints(session_dir: Path) -> tuple[np.ndarray, np.ndarray]:
+    """``t_ns`` (n,) and the true keypoint of each foot (n, 2, 3) as the pose correction models
+    it, ankle + ``G_ank`` · ``KEYPOINT_OFFSET_M`` (scaled by the subject's height, x mirrored
+    for the right foot), on the true pose of ``groundtruth/joints.npz``; an
+    :class:`InputError` naming the file when it or ``subject.yaml`` is missing or unreadable."""
+    truth = session_dir / "groundtruth"
+    try:
+        with np.load(truth / "joints.npz") as z:
+            t_ns, root, aa, joints = z["t_ns"], z["root_orient"], z["joint_aa"], z["positions"]
+        height = float(yaml.safe_load((truth / "subject.yaml").read_text())["height_m"])
+    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as exc:
+        raise InputError(f"{truth}: no true pose and subject height ({exc!r})") from None
+    offset = np.array(KEYPOINT_OFFSET_M) * height / REFERENCE_HEIGHT_M
+    R = so3_exp(aa)  # (n, 8, 3, 3): hips, knees, ankles, feet (left, right each)
+    out = np.empty((len(t_ns), 2, 3))
+    for s in (0, 1):
+        G_ank = so3_exp(root) @ R[:, s] @ R[:, 2 + s] @ R[:, 4 + s]
+        m = offset if s == 0 else offset * (-1.0, 1.0, 1.0)
+        out[:, s] = joints[:, 5 + s] + G_ank @ m
+    return t_ns, out
+
+
 def swing_timing(stances: list[tuple[float, float]], heel_off_s: float, landing_s: float):
     """(start − true heel off, landing − true foot flat) [s] of one swing: the true stance it
     lands in is the one whose foot flat is nearest the landing, the one before it the rest it
@@ -89,13 +116,14 @@ def swing_timing(stances: list[tuple[float, float]], heel_off_s: float, landing_
 
 
 def best_start(
-    plan: SwingPlan, t_s: np.ndarray, marker: np.ndarray, stances: list[tuple[float, float]]
+    plan: SwingPlan, t_s: np.ndarray, point: np.ndarray, stances: list[tuple[float, float]]
 ) -> float:
-    """The start [s] that lays the template best over the true marker path (n, 3) in the
-    plan's filled frames (module docstring), its landing fixed; the rests are the median true
-    marker over the foot flat → heel off frames of the two true stances around the landing
-    (the next one's first 0.1 s where it has no heel off); frames without a true point (NaN)
-    are left out. NaN when a rest or the window has no frame."""
+    """The start [s] that lays the template best over the true path (n, 3) of the point it
+    follows in the plan's filled frames (module docstring), its landing fixed; the rests are
+    the median true point over the foot flat → heel off frames of the two true stances around
+    the landing (the next one's first 0.1 s where it has no heel off); frames without a true
+    point (NaN) are left out. NaN when a rest or the window has no frame, or the rests
+    coincide."""
     flats = np.array([s[0] for s in stances])
     if not np.isfinite(flats).any():
         return float("nan")
@@ -104,16 +132,18 @@ def best_start(
         return float("nan")
     (ff0, ho0), (ff1, ho1) = stances[k - 1], stances[k]
     end1 = ho1 if np.isfinite(ho1) else ff1 + 0.1
-    known = np.isfinite(marker[:, 0])
+    known = np.isfinite(point[:, 0])
     rest0 = known & (t_s <= ho0) & (t_s >= ff0 if np.isfinite(ff0) else True)
     rest1 = known & (t_s >= ff1) & (t_s <= end1)
     window = known & plan.window
     if not rest0.any() or not rest1.any() or not window.any():
         return float("nan")
-    p0, p1 = np.median(marker[rest0], axis=0), np.median(marker[rest1], axis=0)
+    p0, p1 = np.median(point[rest0], axis=0), np.median(point[rest1], axis=0)
     step = (p1 - p0)[:2]
     length = float(np.hypot(step[0], step[1]))
-    progress = (marker[window, :2] - p0[:2]) @ (step / length) / length
+    if length < 1e-6:
+        return float("nan")
+    progress = (point[window, :2] - p0[:2]) @ (step / length) / length
     t = t_s[window][:, None]
     starts = plan.landing_s - np.arange(MIN_SPAN_S, 1.5, 0.002)[None, :]
     tau = np.clip((t - starts) / (plan.landing_s - starts), 0.0, 1.0)
@@ -156,8 +186,10 @@ def main() -> None:
     for session_dir in args.sessions:
         events = true_events(session_dir)
         obs = cached_observations(session_dir, cfg, args.segmenter, args.cache)
-        t_ref, p_ref, _ = read_feet(session_dir / "groundtruth" / "feet.csv", SessionError, False)
-        i, j = match_times(obs.t_ns, t_ref)
+        t_kp, p_kp = true_keypoints(session_dir)
+        keypoints = np.full((len(obs.t_ns), 2, 3), np.nan)
+        at_frame, at_truth = match_times(obs.t_ns, t_kp)
+        keypoints[at_frame] = p_kp[at_truth]
         plans = plan_swings(obs.vio.t_s, obs.foot_W, obs.vio.stance_feet, **p.swing_timing())
         for plan in plans:
             side = SIDES[plan.side]
@@ -165,11 +197,10 @@ def main() -> None:
                 None if plan.first else swing_timing(events[side], plan.heel_off_s, plan.landing_s)
             )
             if found is not None:
-                marker = np.full((len(obs.t_ns), 3), np.nan)
-                marker[i] = p_ref[side][j]
-                best = best_start(plan, obs.vio.t_s, marker, events[side])
+                best = best_start(plan, obs.vio.t_s, keypoints[:, plan.side], events[side])
                 timing[side].append((*found, plan.from_rest_end, plan.heel_off_s - best))
         result = reconstruct(obs, cfg, predictor)
+        t_ref, p_ref, _ = read_feet(session_dir / "groundtruth" / "feet.csv", SessionError, False)
         i, j = match_times(result.t_ns, t_ref)
         for s, side in enumerate(SIDES):
             est, ref = result.feet_W[i, s], p_ref[side][j]

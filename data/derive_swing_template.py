@@ -31,12 +31,9 @@ from gaitnet.sim.swing_profile import ShoePoint, derive_swing_span, derive_swing
 
 
 def keypoint() -> ShoePoint:
-    """The segmenter's keypoint as the pose correction models it: ``KEYPOINT_OFFSET_M`` (SMPL
-    axes: x outwards, y up, z forward) from the ankle, which lies in the foot's sagittal plane."""
-    outwards, up, forward = KEYPOINT_OFFSET_M
-    if outwards != 0:
-        raise ValueError("derive_swing_template: the keypoint must lie in the sagittal plane")
-    return ShoePoint(forward_m=forward, up_m=up, body_height_m=REFERENCE_HEIGHT_M)
+    """The segmenter's keypoint as the pose correction models it (``KEYPOINT_OFFSET_M`` from
+    the ankle, for a body of ``REFERENCE_HEIGHT_M``)."""
+    return ShoePoint.from_smpl_offset(KEYPOINT_OFFSET_M, REFERENCE_HEIGHT_M)
 
 
 def _row(values: np.ndarray) -> str:

@@ -408,17 +408,44 @@ def test_template_shape() -> None:
 
 
 def _keypoint():
-    """The point the committed template follows, as ``data/derive_swing_template.py`` gives
-    it (the keypoint of ``correction.marker_offset_m``'s default)."""
-    import importlib.util
-    from pathlib import Path
+    """The point the committed template follows: the keypoint of ``correction.marker_offset_m``'s
+    default, as ``data/derive_swing_template.py`` derives it."""
+    from gaitnet.pipeline.config import KEYPOINT_OFFSET_M, REFERENCE_HEIGHT_M
+    from gaitnet.sim.swing_profile import ShoePoint
 
-    path = Path(__file__).resolve().parents[1] / "data" / "derive_swing_template.py"
-    spec = importlib.util.spec_from_file_location(path.stem, path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.keypoint()
+    return ShoePoint.from_smpl_offset(KEYPOINT_OFFSET_M, REFERENCE_HEIGHT_M)
+
+
+def test_a_shoe_point_is_a_fixed_point_of_the_foot() -> None:
+    """A ShoePoint at the instep marker's place gives the generator's marker; one from an SMPL
+    offset is the correction's foot point, ankle + G_ank m, on the generator's own pose; bad
+    offsets are refused."""
+    from gaitnet.geometry.rotation import so3_exp
+    from gaitnet.pipeline.config import PipelineParams
+    from gaitnet.sim.gait import GaitConfig, generate_walk
+    from gaitnet.sim.subject import sample_subject
+    from gaitnet.sim.swing_profile import ShoePoint
+
+    rng = np.random.default_rng(3)
+    subject = sample_subject(rng)
+    walk = generate_walk(subject, GaitConfig(speed_mps=1.2, walk_length_m=4.0), rng)
+    t = np.linspace(0.5, 3.0, 40)
+    forward, _, up = subject.marker_in_shoe() - subject.ankle_in_shoe()
+    marker = ShoePoint(forward, up, subject.height_m).points(walk, t)
+    np.testing.assert_allclose(marker, walk.marker_points(t), atol=1e-12)
+    # the correction's foot point on the generator's pose: ankle + G_ank · offset (SMPL axes)
+    offset = (0.0, -0.019, 0.116)
+    point = ShoePoint.from_smpl_offset(offset, subject.height_m).points(walk, t)
+    root, _, aa = walk.smpl_pose(t)
+    joints = walk.joints(t)
+    for s in (0, 1):  # joint_aa: hips, knees, ankles, feet (left, right each)
+        G = so3_exp(root) @ so3_exp(aa[:, s]) @ so3_exp(aa[:, 2 + s]) @ so3_exp(aa[:, 4 + s])
+        np.testing.assert_allclose(point[:, s], joints[:, 5 + s] + G @ offset, atol=1e-9)
+    assert PipelineParams().marker_offset_m[0] == 0  # the reported marker is sagittal too
+    with pytest.raises(ValueError, match="sagittal"):
+        ShoePoint.from_smpl_offset((0.01, 0.0, 0.1), 1.7)
+    with pytest.raises(ValueError, match="positive height"):
+        ShoePoint(0.1, 0.0, 0.0)
 
 
 def test_committed_template_is_the_gait_generators() -> None:

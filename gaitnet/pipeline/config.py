@@ -145,12 +145,13 @@ class PipelineParams:
     """See ``swing_span_contralateral_offset_s``; 0: every swing's span from its cycle."""
     swing_start_delay_s: float = SWING_START_DELAY_S
     """For ``gap_fill: swing``: the start that ``swing_span_*`` give is laid this much later
-    [s]; 0 by default: 0.05 s fills simulated sessions better and real walks worse
-    (:mod:`gaitnet.pipeline.swing_fill`, docs/pipeline.md)."""
+    [s]; 0 by default: 0.05 s fills real walks worse, and with the keypoint's template the 7
+    held-out simulated sessions too (:mod:`gaitnet.pipeline.swing_fill`, docs/pipeline.md)."""
     swing_rest_end_lead_s: float = SWING_REST_END_LEAD_S
-    """For ``gap_fill: swing``: the start is never earlier than this before the last frame the
-    filter saw the foot resting [s] (its landmark outlasts heel off, the rising heel still giving
-    a stationary point; :mod:`gaitnet.pipeline.swing_fill`, docs/pipeline.md)."""
+    """For ``gap_fill: swing``: the timing lines' start is never earlier than this before the
+    last frame the filter saw the foot resting [s] (the right foot's landmark outlasts heel off,
+    the rising heel still giving a stationary point; the re-timing may move the start earlier;
+    :mod:`gaitnet.pipeline.swing_fill`, docs/pipeline.md)."""
     swing_retime_weight: float = SWING_RETIME_WEIGHT
     """For ``gap_fill: swing`` (not a foot's first pair): where the foot is seen again before it
     lands, the template's time at its measured progress (0.5–0.97 of the way) gives the swing's
@@ -158,7 +159,7 @@ class PipelineParams:
     two estimates averaged; :mod:`gaitnet.pipeline.swing_fill`)."""
     swing_retime_max_shift_s: float = SWING_RETIME_MAX_SHIFT_S
     """The start read where the foot is seen again is kept within this of the timing line's
-    (or the rest's last frame's) [s]."""
+    (or of the bound the rest's last frame sets) [s]."""
     marker_offset_m: tuple[float, float, float] = (0.0, -0.011, 0.079)
     """The reported foot point (``feet.csv``, the foot trajectories): the shoe marker over the
     instep, in the ankle frame (SMPL axes: x left, y up, z forward; mirrored for the right

@@ -34,14 +34,14 @@ walking foot has a stereotyped shape, which this module lays between the two res
   :data:`CONTRALATERAL_SHARE` of the cycle (else the other foot's landmark is a standing
   start or a missed one) and not for a foot's first pair (a step out of standing, whose
   timing the steady swings of the fit do not describe); then laid ``δ`` =
-  ``pipeline.swing_start_delay_s`` (:data:`SWING_START_DELAY_S`, 0) later: on simulated
-  sessions 0.05 s lowers the filled frames' error, on real walks (the CMU walks of
-  ``benchmarks/bench_swing_fill.py``) it raises it, because the generator's swings start
-  later against the next foot flat than real ones (docs/pipeline.md, *The start delay*);
+  ``pipeline.swing_start_delay_s`` (:data:`SWING_START_DELAY_S`, 0) later: 0.05 s raises the
+  filled frames' error on real walks (the CMU walks of ``benchmarks/bench_swing_fill.py``),
+  whose swings start earlier against the next foot flat than the generator's, and with this
+  template on the 7 held-out simulated sessions too (docs/pipeline.md, *The start delay*);
   never earlier than ``pipeline.swing_rest_end_lead_s`` (:data:`SWING_REST_END_LEAD_S`, 0.05 s)
-  before the last frame the filter saw the foot resting (the filter's landmark outlasts heel
-  off: the rising heel still gives it a stationary point), and at least :data:`MIN_SPAN_S`
-  before the landing;
+  before the last frame the filter saw the foot resting (the right foot's landmark outlasts
+  heel off: the rising heel still gives it a stationary point), and at least
+  :data:`MIN_SPAN_S` before the landing;
 - ``ρ`` (0 → 1, :data:`SWING_PROGRESS`), ``λ`` (:data:`SWING_LIFT`) and ``μ``
   (:data:`SWING_SIDEWAYS`; ``λ``, ``μ`` fractions of the body height ``H``): the mean path
   from heel off to the next foot flat, over the simulator's walks at 0.8–1.6 m/s (458 swings
@@ -175,9 +175,9 @@ class SwingPlan:
     """Where and when one unseen swing is laid (module docstring): ``side`` (0 left, 1 right),
     the rest points ``p0``, ``p1`` (3,), the swing's start ``heel_off_s`` and its landing
     ``landing_s`` (the next landmark's first frame), whether it is the foot's first pair and
-    whether the filter's last sight of the foot resting set the start
-    (``from_rest_end``: the timing line put it earlier), and the frames it fills (``window``
-    (n,) bool)."""
+    whether the bound that the filter's last sight of the foot resting sets (that frame less
+    ``rest_end_lead_s``) set the start (``from_rest_end``: the timing line put it earlier),
+    and the frames it fills (``window`` (n,) bool)."""
 
     side: int
     p0: np.ndarray

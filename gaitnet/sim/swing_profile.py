@@ -40,6 +40,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from gaitnet.sim.gait import GaitConfig, Walk, generate_walk
+from gaitnet.sim.gait_legs import R_PfromSMPL
 from gaitnet.sim.scene import SIDES
 from gaitnet.sim.subject import sample_subject
 
@@ -68,6 +69,20 @@ class ShoePoint:
             self.body_height_m > 0
         ):
             raise ValueError(f"ShoePoint: finite offsets and a positive height needed, got {self}")
+
+    @classmethod
+    def from_smpl_offset(
+        cls, offset_m: tuple[float, float, float], body_height_m: float
+    ) -> ShoePoint:
+        """The point at an ankle-frame offset in SMPL axes (x outwards for the left foot, y up,
+        z forward; the pose correction's foot offsets, :mod:`gaitnet.pipeline.config`). The
+        point must lie in the foot's sagittal plane (x = 0): the left and right feet then
+        share it."""
+        outwards, up, forward = offset_m
+        if outwards != 0:
+            raise ValueError(f"ShoePoint: the offset must have x = 0 (sagittal), got {offset_m}")
+        forward_S, _, up_S = R_PfromSMPL @ np.array([outwards, up, forward], dtype=np.float64)
+        return cls(forward_m=float(forward_S), up_m=float(up_S), body_height_m=body_height_m)
 
     def points(self, walk: Walk, t: np.ndarray) -> np.ndarray:
         """The point of both feet of ``walk`` at times ``t``, (len(t), 2, 3)."""
