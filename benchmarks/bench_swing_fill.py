@@ -10,7 +10,11 @@ walks of the simulator's gait generator written in the same format), resampled t
    the foot): the same point on every clip;
 2. the foot "rests" where that point's horizontal speed stays below ``--rest-speed`` for at
    least 3 frames; the rests stand in for the filter's stance landmarks and the point in the
-   rest frames for the measured foot, everything between two rests is unseen;
+   rest frames for the measured foot, everything between two rests is unseen (with
+   ``--point keypoint`` the measured and scored point is instead the keypoint as the pose
+   correction models it, the ankle plus ``KEYPOINT_OFFSET_M`` scaled by ``--height`` in the
+   ankle's frame of the clip's pose: the point the template follows; the rests are still the
+   mid-foot point's);
 3. :func:`gaitnet.pipeline.swing_fill.swing_fill` fills the unseen frames (the default
    ``pipeline.swing_*`` keys, but ``--start-delay`` for ``pipeline.swing_start_delay_s``; with
    ``--no-rest-bound`` the rests handed to it end at their first frame, so the swing's start
@@ -19,7 +23,7 @@ walks of the simulator's gait generator written in the same format), resampled t
    line in time between the two rests (the simplest fill) is scored beside it.
 
     python benchmarks/bench_swing_fill.py REAL/*_poses.npz [--simulated 12]
-        [--start-delay S] [--no-rest-bound] [--camera-peak]
+        [--start-delay S] [--no-rest-bound] [--point midfoot|keypoint] [--camera-peak]
 
 (``REAL``: walking clips of the CMU Graphics Lab Motion Capture Database, mocap.cs.cmu.edu,
 in AMASS's SMPL+H G layout, as AMASS distributes them; docs/pipeline.md has the figures.)
@@ -49,7 +53,7 @@ import numpy as np
 from gaitnet.geometry import so3_exp
 from gaitnet.motion.amass import load_amass_clip
 from gaitnet.motion.skeleton import builtin_skeleton, forward_kinematics, from_rest_joints
-from gaitnet.pipeline.config import PipelineParams
+from gaitnet.pipeline.config import KEYPOINT_OFFSET_M, REFERENCE_HEIGHT_M, PipelineParams
 from gaitnet.pipeline.swing_fill import swing_fill
 from gaitnet.training.scripts import ScriptParser
 from gaitnet.vio.gait import SIDES
@@ -99,18 +103,37 @@ def _foot_rests(
     return p, _rests(speed, rest_speed)
 
 
+def _keypoints(clip, J: np.ndarray, height_m: float) -> np.ndarray:
+    """The keypoint of each foot (n, 2, 3) as the pose correction models it: the ankle plus
+    ``KEYPOINT_OFFSET_M`` (scaled to ``height_m``, x mirrored for the right foot) in the
+    ankle's frame of the clip's pose."""
+    offset = np.array(KEYPOINT_OFFSET_M) * height_m / REFERENCE_HEIGHT_M
+    R = so3_exp(clip.joint_aa)  # (n, 8, 3, 3): hips, knees, ankles, feet (left, right each)
+    out = np.empty((len(J), 2, 3))
+    for s in (0, 1):
+        G_ank = so3_exp(clip.root_orient) @ R[:, s] @ R[:, 2 + s] @ R[:, 4 + s]
+        out[:, s] = J[:, ANKLES[s]] + G_ank @ (offset * (1.0 - 2.0 * s, 1.0, 1.0))
+    return out
+
+
 def score_clip(
     path: Path,
     height_m: float,
     rest_speed: float,
     timing: dict[str, float] | None = None,
     rest_bound: bool = True,
+    point: str = "midfoot",
 ) -> dict[str, list[float]]:
     """Per unseen frame the fill's and the straight line's 3-D error and the fill's sideways
     error (``fill``, ``line``, ``sideways``), per rest-to-rest cycle the unseen share
     (``fraction``); ``timing``: :func:`swing_fill`'s keyword arguments (default: the config's);
-    ``rest_bound`` False: the rests end at their first frame for the fill (module docstring)."""
+    ``rest_bound`` False: the rests end at their first frame for the fill; ``point``
+    ``"keypoint"``: the keypoint is measured and scored instead of the mid-foot point (module
+    docstring)."""
+    if point not in ("midfoot", "keypoint"):
+        raise ValueError(f"score_clip: point must be midfoot or keypoint, got {point!r}")
     clip, J = _clip_joints(path, height_m)
+    keypoints = _keypoints(clip, J, height_m) if point == "keypoint" else None
     t = np.arange(clip.n_frames) / FPS
     out: dict[str, list[float]] = {"fill": [], "line": [], "sideways": [], "fraction": []}
     measured = np.full((clip.n_frames, 2, 3), np.nan)
@@ -118,6 +141,8 @@ def score_clip(
     truth = np.empty((clip.n_frames, 2, 3))
     for s, side in enumerate(SIDES):
         p, rests = _foot_rests(J, s, rest_speed)
+        if keypoints is not None:
+            p = keypoints[:, s]
         truth[:, s] = p
         for a, b in rests:
             measured[a : b + 1, s] = p[a : b + 1]
@@ -213,6 +238,10 @@ def main() -> None:
         help="the timing line alone sets each swing's start (not the rest's end)",
     )  # fmt: skip
     ap.add_argument(
+        "--point", choices=("midfoot", "keypoint"), default="midfoot",
+        help="the point measured at rest and scored (default midfoot)",
+    )  # fmt: skip
+    ap.add_argument(
         "--camera-peak", action="store_true",
         help="also print where a pelvis-worn camera is highest within each swing",
     )  # fmt: skip
@@ -234,7 +263,7 @@ def main() -> None:
             scores: dict[str, list[float]] = {}
             for path in paths:
                 bound = not args.no_rest_bound
-                found = score_clip(path, args.height, args.rest_speed, timing, bound)
+                found = score_clip(path, args.height, args.rest_speed, timing, bound, args.point)
                 for key, values in found.items():
                     scores.setdefault(key, []).extend(values)
             _report(name, scores)
