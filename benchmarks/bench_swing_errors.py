@@ -36,14 +36,15 @@ from pathlib import Path
 import numpy as np
 import yaml
 from bench_infer import cached_observations
+from bench_swing_fill import keypoints_on_pose
 
 from gaitnet.config import load_config
 from gaitnet.errors import InputError, SessionError
 from gaitnet.evaluation.feet import read_feet
 from gaitnet.evaluation.metrics import align_yaw_translation, match_times
-from gaitnet.geometry.rotation import so3_exp
 from gaitnet.motion.onnx_runtime import OnnxPredictor
-from gaitnet.pipeline.config import KEYPOINT_OFFSET_M, REFERENCE_HEIGHT_M, InferConfig
+from gaitnet.motion.skeleton import from_rest_joints
+from gaitnet.pipeline.config import InferConfig
 from gaitnet.pipeline.infer import default_predictor_path, reconstruct
 from gaitnet.pipeline.swing_fill import (
     MIN_SPAN_S,
@@ -82,24 +83,18 @@ def true_events(session_dir: Path) -> dict[str, list[tuple[float, float]]]:
 
 def true_keypoints(session_dir: Path) -> tuple[np.ndarray, np.ndarray]:
     """``t_ns`` (n,) and the true keypoint of each foot (n, 2, 3) as the pose correction models
-    it, ankle + ``G_ank`` · ``KEYPOINT_OFFSET_M`` (scaled by the subject's height, x mirrored
-    for the right foot), on the true pose of ``groundtruth/joints.npz``; an
-    :class:`InputError` naming the file when it or ``subject.yaml`` is missing or unreadable."""
+    it (:func:`bench_swing_fill.keypoints_on_pose`), on the true pose and skeleton of
+    ``groundtruth/joints.npz`` and the height of ``subject.yaml``; an :class:`InputError`
+    naming the folder when either is missing or unreadable."""
     truth = session_dir / "groundtruth"
     try:
         with np.load(truth / "joints.npz") as z:
-            t_ns, root, aa, joints = z["t_ns"], z["root_orient"], z["joint_aa"], z["positions"]
+            t_ns, root, trans, aa = z["t_ns"], z["root_orient"], z["trans"], z["joint_aa"]
+            skel = from_rest_joints(z["rest_joints"])
         height = float(yaml.safe_load((truth / "subject.yaml").read_text())["height_m"])
     except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as exc:
         raise InputError(f"{truth}: no true pose and subject height ({exc!r})") from None
-    offset = np.array(KEYPOINT_OFFSET_M) * height / REFERENCE_HEIGHT_M
-    R = so3_exp(aa)  # (n, 8, 3, 3): hips, knees, ankles, feet (left, right each)
-    out = np.empty((len(t_ns), 2, 3))
-    for s in (0, 1):
-        G_ank = so3_exp(root) @ R[:, s] @ R[:, 2 + s] @ R[:, 4 + s]
-        m = offset if s == 0 else offset * (-1.0, 1.0, 1.0)
-        out[:, s] = joints[:, 5 + s] + G_ank @ m
-    return t_ns, out
+    return t_ns, keypoints_on_pose(skel, root, trans, aa, height)
 
 
 def swing_timing(stances: list[tuple[float, float]], heel_off_s: float, landing_s: float):

@@ -52,8 +52,19 @@ import numpy as np
 
 from gaitnet.geometry import so3_exp
 from gaitnet.motion.amass import load_amass_clip
-from gaitnet.motion.skeleton import builtin_skeleton, forward_kinematics, from_rest_joints
-from gaitnet.pipeline.config import KEYPOINT_OFFSET_M, REFERENCE_HEIGHT_M, PipelineParams
+from gaitnet.motion.skeleton import (
+    LowerBodySkeleton,
+    builtin_skeleton,
+    forward_kinematics,
+    from_rest_joints,
+)
+from gaitnet.pipeline.config import (
+    KEYPOINT_OFFSET_M,
+    REFERENCE_HEIGHT_M,
+    InferCorrectionParams,
+    PipelineParams,
+)
+from gaitnet.pipeline.pose_residuals import ChainGeometry, foot_points
 from gaitnet.pipeline.swing_fill import swing_fill
 from gaitnet.training.scripts import ScriptParser
 from gaitnet.vio.gait import SIDES
@@ -82,15 +93,15 @@ def _rests(
 
 
 def _clip_joints(path: Path, height_m: float):
-    """The clip at :data:`FPS` and its joints by forward kinematics (the clip's rest joints,
-    else the built-in skeleton of ``height_m``)."""
+    """The clip at :data:`FPS`, its skeleton (the clip's rest joints, else the built-in
+    skeleton of ``height_m``) and its joints by forward kinematics."""
     clip = load_amass_clip(path, fps=FPS)
     skel = (
         from_rest_joints(clip.rest_joints)
         if clip.rest_joints is not None
         else builtin_skeleton(height_m)
     )
-    return clip, forward_kinematics(skel, clip.root_orient, clip.trans, clip.joint_aa)
+    return clip, skel, forward_kinematics(skel, clip.root_orient, clip.trans, clip.joint_aa)
 
 
 def _foot_rests(
@@ -103,17 +114,21 @@ def _foot_rests(
     return p, _rests(speed, rest_speed)
 
 
-def _keypoints(clip, J: np.ndarray, height_m: float) -> np.ndarray:
-    """The keypoint of each foot (n, 2, 3) as the pose correction models it: the ankle plus
-    ``KEYPOINT_OFFSET_M`` (scaled to ``height_m``, x mirrored for the right foot) in the
-    ankle's frame of the clip's pose."""
+def keypoints_on_pose(
+    skel: LowerBodySkeleton,
+    root_orient: np.ndarray,
+    trans: np.ndarray,
+    joint_aa: np.ndarray,
+    height_m: float,
+) -> np.ndarray:
+    """The keypoint of each foot (n, 2, 3) as the pose correction models it: its foot point
+    (:func:`gaitnet.pipeline.pose_residuals.foot_points`) with ``KEYPOINT_OFFSET_M`` scaled to
+    ``height_m``, on poses ``root_orient`` (n, 3), ``trans`` (n, 3), ``joint_aa`` (n, 8, 3)
+    (SMPL: hips, knees, ankles, feet) of skeleton ``skel``."""
     offset = np.array(KEYPOINT_OFFSET_M) * height_m / REFERENCE_HEIGHT_M
-    R = so3_exp(clip.joint_aa)  # (n, 8, 3, 3): hips, knees, ankles, feet (left, right each)
-    out = np.empty((len(J), 2, 3))
-    for s in (0, 1):
-        G_ank = so3_exp(clip.root_orient) @ R[:, s] @ R[:, 2 + s] @ R[:, 4 + s]
-        out[:, s] = J[:, ANKLES[s]] + G_ank @ (offset * (1.0 - 2.0 * s, 1.0, 1.0))
-    return out
+    params = replace(InferCorrectionParams(), marker_offset_m=tuple(offset))
+    poses = np.concatenate([root_orient, joint_aa[:, :6].reshape(len(joint_aa), 18)], axis=1)
+    return foot_points(ChainGeometry.build(skel, params), poses, trans)
 
 
 def score_clip(
@@ -132,8 +147,10 @@ def score_clip(
     docstring)."""
     if point not in ("midfoot", "keypoint"):
         raise ValueError(f"score_clip: point must be midfoot or keypoint, got {point!r}")
-    clip, J = _clip_joints(path, height_m)
-    keypoints = _keypoints(clip, J, height_m) if point == "keypoint" else None
+    clip, skel, J = _clip_joints(path, height_m)
+    keypoints = None
+    if point == "keypoint":
+        keypoints = keypoints_on_pose(skel, clip.root_orient, clip.trans, clip.joint_aa, height_m)
     t = np.arange(clip.n_frames) / FPS
     out: dict[str, list[float]] = {"fill": [], "line": [], "sideways": [], "fraction": []}
     measured = np.full((clip.n_frames, 2, 3), np.nan)
@@ -172,7 +189,7 @@ def score_clip(
 def camera_peak_phases(path: Path, height_m: float, rest_speed: float) -> list[float]:
     """Per swing between two rests of a foot, where the virtual camera is highest, as a share
     of the time from the end of the first rest to the start of the next (module docstring)."""
-    clip, J = _clip_joints(path, height_m)
+    clip, _, J = _clip_joints(path, height_m)
     z = (J[:, 0] + so3_exp(clip.root_orient) @ CAMERA_IN_PELVIS_M)[:, 2]
     phases = []
     for s in range(2):

@@ -40,7 +40,7 @@ from typing import cast
 import numpy as np
 
 from gaitnet.errors import InputError, SessionError
-from gaitnet.geometry import so3_exp, so3_log
+from gaitnet.geometry import so3_log
 from gaitnet.io.types import Frame, SessionSource
 from gaitnet.motion.amass import TARGET_FPS
 from gaitnet.motion.onnx_runtime import OnnxPredictor
@@ -57,7 +57,7 @@ from gaitnet.pipeline.pelvis_extrinsic import (
     standing_frames,
     standing_T_WfromP,
 )
-from gaitnet.pipeline.pose_residuals import ChainGeometry, ChainState, chain_points
+from gaitnet.pipeline.pose_residuals import ChainGeometry, foot_points
 from gaitnet.pipeline.pose_tracking import track_poses
 from gaitnet.pipeline.pose_types import FrameMeasurements, PoseState, R_PfromSMPL
 from gaitnet.pipeline.swing_fill import swing_fill
@@ -274,17 +274,6 @@ def run_infer(
     return reconstruct(obs, cfg, predictor, progress)
 
 
-def _foot_points(geometry: ChainGeometry, poses: np.ndarray, trans: np.ndarray) -> np.ndarray:
-    """World foot points (n, 2, 3) of ``geometry`` (its foot offset, the skeleton's lengths)
-    for poses (n, 21) and root translations (n, 3)."""
-    n = len(poses)
-    lengths = np.broadcast_to(geometry.lengths, (n, 4)).copy()
-    state = ChainState(
-        R0=so3_exp(poses[:, :3]), t=trans, a=poses[:, 3:].reshape(n, 6, 3), l=lengths
-    )
-    return chain_points(geometry, state)["foot"]
-
-
 def reconstruct(
     obs: Observations,
     cfg: InferConfig,
@@ -378,7 +367,7 @@ def reconstruct(
         if m > 0:
             # the measured points' geometry, with the skeleton's lengths as the outputs use
             geometry = ChainGeometry.build(skeleton, correction)
-            bridged = bridge_gaps(_foot_points(geometry, poses, trans), seen[:m])
+            bridged = bridge_gaps(foot_points(geometry, poses, trans), seen[:m])
             filled[:m] = np.where(by_swing[:m, :, None], swing[:m], bridged)
         use = ~np.isnan(filled[:, :, 0])
         if use.any():
@@ -396,7 +385,7 @@ def reconstruct(
         marker_offset=True,
         marker_offset_m=tuple(scale * np.array(cfg.pipeline.marker_offset_m)),
     )
-    feet_W = _foot_points(ChainGeometry.build(skeleton, marker), poses, trans)
+    feet_W = foot_points(ChainGeometry.build(skeleton, marker), poses, trans)
     log.info(
         "standing phase %d frames; body height %.2f m; extrinsic spread %.1f mm / %.2f°; "
         "first correction pass over %d of %d frames",

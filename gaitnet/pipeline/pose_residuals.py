@@ -33,7 +33,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import NDArray
 
-from gaitnet.geometry import so3_log
+from gaitnet.geometry import so3_exp, so3_log
 from gaitnet.motion.skeleton import LowerBodySkeleton
 from gaitnet.pipeline.pose_types import PoseCorrectionParams
 
@@ -47,6 +47,7 @@ __all__ = [
     "chain_points",
     "evaluate",
     "exp_and_right_jacobian",
+    "foot_points",
     "log_and_right_jacobian_inv",
     "retract",
 ]
@@ -234,6 +235,18 @@ def chain_points(geo: ChainGeometry, s: ChainState, jac: bool = False) -> dict[s
         out |= {"G_hip": G_hip, "G_knee": G_knee, "Jr": Jr}
         out |= {"d_thigh": d_thigh, "d_shank": d_shank}
     return out
+
+
+def foot_points(geometry: ChainGeometry, poses: FloatArray, trans: FloatArray) -> FloatArray:
+    """World foot points (n, 2, 3) of ``geometry`` (its foot offset, the skeleton's lengths)
+    for poses (n, 21: root and the six leg joints' axis-angles, SMPL convention) and root
+    translations (n, 3)."""
+    n = len(poses)
+    lengths = np.broadcast_to(geometry.lengths, (n, 4)).copy()
+    state = ChainState(
+        R0=so3_exp(poses[:, :3]), t=trans, a=poses[:, 3:].reshape(n, 6, 3), l=lengths
+    )
+    return chain_points(geometry, state)["foot"]
 
 
 def _root_terms(pb: Problem, s: ChainState) -> tuple[FloatArray, FloatArray]:
