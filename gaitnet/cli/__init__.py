@@ -127,6 +127,14 @@ def build_parser() -> argparse.ArgumentParser:
         "and config give byte-identical output.",
     )
     _add_simulator_options(p, out_help="output session folder")
+    p.add_argument(
+        "--motion",
+        metavar="CLIP.npz",
+        default=None,
+        help="play this AMASS-format motion clip (SMPL+H G *_poses.npz or SMPL-X *_stageii.npz) "
+        "as the subject's motion instead of generating a walk (sets motion.clip; "
+        "docs/simulator.md, Motion sources)",
+    )
     p.set_defaults(func=_cmd_simulate)
 
     p = sub.add_parser(

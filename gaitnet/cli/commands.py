@@ -65,7 +65,10 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from gaitnet.sim.config import SimConfig
     from gaitnet.sim.session import simulate_session
 
-    cfg = load_config(SimConfig, args.config, args.overrides)
+    overrides = list(args.overrides)
+    if args.motion is not None:
+        overrides.append(f"motion.clip={_clip_path(args.motion)}")
+    cfg = load_config(SimConfig, args.config, overrides)
     result = simulate_session(
         cfg,
         args.seed,
@@ -87,6 +90,18 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     )
     print(f"preview: {result.path / 'preview.png'}")
     return 0
+
+
+def _clip_path(text: str) -> str:
+    """``--motion``'s file as an absolute path quoted for a YAML override (so the session's
+    ``sim_config.yaml`` reproduces it from any folder)."""
+    import json
+    from pathlib import Path
+
+    path = Path(text)
+    if not path.is_file():
+        raise UsageError(f"{PROG} simulate", f"--motion {text!r}: no such file")
+    return json.dumps(str(path.resolve()))
 
 
 def _cmd_simulate_dataset(args: argparse.Namespace) -> int:

@@ -1,6 +1,7 @@
 """The simulator's config: one YAML file (``configs/sim/*.yaml``) → :class:`SimConfig`.
 
-Sections: ``subject``, ``gait`` (:class:`gaitnet.sim.gait.GaitConfig`), ``camera`` and
+Sections: ``subject``, ``gait`` (:class:`gaitnet.sim.gait.GaitConfig`), ``motion``
+(:class:`MotionConfig`: a motion-capture clip instead of the gait generator), ``camera`` and
 ``mount`` (:mod:`gaitnet.sim.rig`), ``imu`` (:class:`gaitnet.sim.imu.ImuConfig`), ``scene``,
 ``sensor`` (:class:`gaitnet.sim.sensor_model.SensorNoiseConfig`), ``floor_relief``
 (:class:`gaitnet.sim.floor_relief.FloorReliefConfig`), ``timing``
@@ -46,6 +47,42 @@ class SubjectConfig:
             raise ValueError(f"height_range_m must be [low, high], got {self.height_range_m}")
         if self.height_m is not None:
             check_range("height_m", self.height_m, lo, hi, " m")
+
+
+@dataclass(frozen=True)
+class MotionConfig:
+    """Where the subject's motion comes from (docs/simulator.md, *Motion sources*).
+
+    ``clip``: an AMASS-format ``*_poses.npz`` (or SMPL-X ``*_stageii.npz``) file played as the
+    subject's motion (:mod:`gaitnet.sim.clip_walk`); None: the gait generator (every other key
+    of this section is then unused). ``start_s`` / ``duration_s``: the segment of the clip
+    played (None: to its end). ``lead_in_s`` / ``lead_out_s``: the time over which the
+    subject accelerates from standing into the clip / slows from it to standing
+    (:mod:`gaitnet.sim.clip_lead`); 0: the session starts / ends with the clip's own frame
+    (no standing). ``lowpass_hz``: cut-off of the zero-phase Butterworth filter applied to
+    the clip's root and joint rotations and its translation (0: played as recorded).
+    """
+
+    clip: str | None = None
+    start_s: float = 0.0
+    duration_s: float | None = None
+    lead_in_s: float = 1.0
+    lead_out_s: float = 1.0
+    lowpass_hz: float = 8.0
+
+    def __post_init__(self) -> None:
+        if self.clip is not None and (not isinstance(self.clip, str) or not self.clip.strip()):
+            raise ValueError(f"clip must be a path to an .npz file, got {self.clip!r}")
+        check_range("start_s", self.start_s, 0.0, 36000.0, " s")
+        if self.duration_s is not None:
+            check_range("duration_s", self.duration_s, 0.5, 3600.0, " s")
+        for name in ("lead_in_s", "lead_out_s"):
+            value = check_range(name, getattr(self, name), 0.0, 5.0, " s")
+            if 0.0 < value < 0.5:
+                raise ValueError(f"{name} must be 0 (none) or within [0.5, 5] s, got {value!r}")
+        lowpass = check_range("lowpass_hz", self.lowpass_hz, 0.0, 60.0, " Hz")
+        if 0.0 < lowpass < 2.0:
+            raise ValueError(f"lowpass_hz must be 0 (off) or within [2, 60] Hz, got {lowpass!r}")
 
 
 @dataclass(frozen=True)
@@ -120,6 +157,7 @@ class OutputConfig:
 class SimConfig:
     subject: SubjectConfig = field(default_factory=SubjectConfig)
     gait: GaitConfig = field(default_factory=GaitConfig)
+    motion: MotionConfig = field(default_factory=MotionConfig)
     camera: CameraConfig = field(default_factory=CameraConfig)
     mount: MountConfig = field(default_factory=MountConfig)
     imu: ImuConfig = field(default_factory=ImuConfig)

@@ -125,6 +125,10 @@ class StepEvents:
 class Walk:
     """A generated walk; every method takes times ``t`` (n,) [s] and is vectorised."""
 
+    #: where a played motion came from (:class:`gaitnet.sim.clip_walk.ClipSource`); None: the
+    #: gait generator
+    source = None
+
     def __init__(
         self,
         subject: Subject,

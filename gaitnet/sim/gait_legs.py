@@ -49,11 +49,14 @@ def leg_chain(
     p_PinW: np.ndarray,
     R_WfromShoe: np.ndarray,
     ankle_W: np.ndarray,
+    bend_W: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Joint positions ``(n, 9, 3)`` and global rotations of thighs and shanks ``(n, 2, 3, 3)``.
 
-    ``R_WfromShoe`` (n, 2, 3, 3) and ``ankle_W`` (n, 2, 3) are per side (left, right). Raises if
-    an ankle is out of reach (the generator keeps it within reach).
+    ``R_WfromShoe`` (n, 2, 3, 3) and ``ankle_W`` (n, 2, 3) are per side (left, right).
+    ``bend_W`` (n, 2, 3): the direction each knee bends towards (made orthogonal to the
+    hip–ankle line; None: the pelvis forward axis ``f``, as the module docstring says). Raises
+    if an ankle is out of reach (the generator keeps it within reach).
     """
     J = skel.rest_joints
     R_root = R_WfromP @ R_PfromSMPL
@@ -69,7 +72,7 @@ def leg_chain(
     if np.any(d > L1 + L2 - 1e-9) or np.any(d < np.abs(L1 - L2) + 1e-9):
         raise ValueError("leg IK: ankle out of reach")
     e = d_vec / d[..., None]
-    fwd = np.broadcast_to(R_WfromP[:, None, :, 0], e.shape)
+    fwd = np.broadcast_to(R_WfromP[:, None, :, 0] if bend_W is None else bend_W, e.shape)
     f = _unit(fwd - np.sum(fwd * e, axis=-1, keepdims=True) * e)
     cos_b = (L1**2 + d**2 - L2**2) / (2 * L1 * d)
     sin_b = np.sqrt(np.clip(1.0 - cos_b**2, 0.0, None))

@@ -256,6 +256,16 @@ class GroundTruthWriter:
                 [list(c) for c in marker_checks],
             ),
         )
+        if walk.source is not None:  # a played clip: where each frame's pose came from
+            atomic_write_text(root / "motion.json", walk.source.to_json() + "\n")
+            rows = walk.source.frame_rows(times)
+            atomic_write_text(
+                root / "motion_frames.csv",
+                _csv(
+                    ["t_ns", "clip_time_s", "blend_weight", "time_rate", "synthetic"],
+                    [[int(t), *r[:3], int(r[3])] for t, r in zip(t_ns, rows, strict=True)],
+                ),
+            )
         subject = {
             k: (list(v) if isinstance(v, tuple) else v)
             for k, v in dataclasses.asdict(walk.subject).items()

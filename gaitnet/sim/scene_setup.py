@@ -2,7 +2,8 @@
 
 Used by both products of the simulator — whole sessions (:mod:`gaitnet.sim.session`) and
 single labelled frames (:mod:`gaitnet.sim.dataset`) — so every config key means the same in
-both. Order of work: sample the subject → generate the walk → build the room (floor family,
+both. Order of work: sample the subject → generate the walk (or play ``motion.clip``,
+:mod:`gaitnet.sim.clip_walk`) → build the room (floor family,
 tag sheets in front of the feet at the start and at the end, floor texture, walls, clutter,
 shoe colours) → sample the lighting and the exposure factor → fix the camera pitch → the
 rig's motion on its strap (:mod:`gaitnet.sim.mount_dynamics`).
@@ -25,6 +26,7 @@ import numpy as np
 from gaitnet.errors import InputError
 from gaitnet.geometry import make_T, so3_exp
 from gaitnet.io.types import AprilTagBoard
+from gaitnet.sim.clip_walk import build_clip_walk
 from gaitnet.sim.clutter import Clutter, make_clutter
 from gaitnet.sim.config import SimConfig
 from gaitnet.sim.floor import FLOOR_FAMILIES, FloorTexture, make_floor
@@ -238,8 +240,12 @@ def build_scene(cfg: SimConfig, rngs: dict[str, np.random.Generator], threads: i
     acts here. ``threads``: threads generating the floor texture (the same world for any
     number)."""
     sc = cfg.subject
-    subject = sample_subject(rngs["subject"], sc.height_range_m, sc.height_m)
-    walk = generate_walk(subject, cfg.gait, rngs["gait"], sway_rng=rngs["sway"])
+    if cfg.motion.clip is None:
+        subject = sample_subject(rngs["subject"], sc.height_range_m, sc.height_m)
+        walk = generate_walk(subject, cfg.gait, rngs["gait"], sway_rng=rngs["sway"])
+    else:  # a motion-capture clip drives the subject (docs/simulator.md, *Motion sources*)
+        walk = build_clip_walk(cfg, rngs["subject"])
+        subject = walk.subject
 
     room_rng = rngs["room"]
     family = cfg.scene.floor_family
