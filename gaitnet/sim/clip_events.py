@@ -9,14 +9,18 @@ horizontally slower than :data:`CONTACT_SPEED_MPS` (a swinging toe passes 1–2 
 at several m/s; a planted sole of a clip slides at centimetres per second, and a rigid shoe
 on a real foot, which bends, rests within a few degrees of level: 3 cm over a 28 cm sole is
 6°). Contact runs shorter than :data:`MIN_CONTACT_S` are dropped and gaps shorter than
-:data:`MIN_GAP_S` closed
-(marker noise). A stance is a run of heel or toe contact; within it heel strike (HS) is the
-first heel contact (the stance's start if the toe lands first), foot flat (FF) the first
-sample with both points down, heel off (HO) the last one, toe off (TO) the stance's end. A
-stance without both points down (toe walking) has FF = HO at its slowest sample. As in the
-generator, a stance that begins with the motion has no HS/FF (standing) and one that lasts to
-its end no HO/TO; the foot-flat placement of a stance (its ``sole_centre_W``, ``yaw_rad``) is
-the sole centre's mean and the toe direction's circular mean over FF–HO, so a clip's own foot
+:data:`MIN_GAP_S` closed (marker noise). A stance is a run of heel or toe contact.
+
+Its events are timed more tightly, against the heights the heel and the toe keep while both
+are down (their medians over that time: a clip's foot rarely rests at exactly 0). A point
+rests while it is within :data:`EVENT_HEIGHT_M` of its resting height and slower than
+:data:`EVENT_SPEED_MPS`: heel strike (HS) is the stance's first sample with the heel resting
+(the stance's start if it never does), foot flat (FF) the first with both points resting, heel
+off (HO) the last, toe off (TO) the last with the toe resting. A stance without both points
+down (toe walking) rests at its slowest sample. As in the generator, a stance that begins
+with the motion has no HS/FF (standing) and one that lasts to its end no HO/TO; the foot-flat
+placement of a stance (its ``sole_centre_W``, ``yaw_rad``) is the sole centre's mean and the
+toe direction's circular mean over its time with both points down, so a clip's own foot
 sliding is averaged, not hidden.
 """
 
@@ -33,6 +37,8 @@ __all__ = [
     "CONTACT_HEIGHT_M",
     "CONTACT_SPEED_MPS",
     "MIN_CONTACT_S",
+    "EVENT_HEIGHT_M",
+    "EVENT_SPEED_MPS",
     "MIN_GAP_S",
     "FootContacts",
     "foot_contacts",
@@ -44,6 +50,8 @@ CONTACT_HEIGHT_M = 0.03
 CONTACT_SPEED_MPS = 0.5
 MIN_CONTACT_S = 0.06
 MIN_GAP_S = 0.06
+EVENT_HEIGHT_M = 0.008
+EVENT_SPEED_MPS = 0.15
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -102,36 +110,53 @@ def _circular_mean(angles: np.ndarray) -> float:
     return float(np.arctan2(np.mean(np.sin(angles)), np.mean(np.cos(angles))))
 
 
+def _settled(p: np.ndarray, t: np.ndarray, level: float) -> np.ndarray:
+    """Samples of a sole point ``p`` (m, 3) resting: within :data:`EVENT_HEIGHT_M` of its
+    resting height and slower than :data:`EVENT_SPEED_MPS` along the floor."""
+    speed = np.linalg.norm(np.gradient(p[:, :2], t, axis=0), axis=1) if len(p) > 1 else 0.0
+    return (p[:, 2] <= level + EVENT_HEIGHT_M) & (speed < EVENT_SPEED_MPS)
+
+
 def foot_events(
     side: Side,
     t: np.ndarray,
     contacts: FootContacts,
     soles_W: np.ndarray,
     toe_dir_W: np.ndarray,
+    heel_W: np.ndarray,
+    toe_W: np.ndarray,
 ) -> FootEvents:
     """The :class:`~gaitnet.sim.gait.FootEvents` of one foot (module docstring) from its
-    contacts, sole centres ``(n, 3)`` and toe directions ``(n, 3)`` at times ``t``."""
+    contacts, sole centres ``(n, 3)``, toe directions ``(n, 3)`` and heel and toe points
+    ``(n, 3)`` at times ``t``."""
     n, nan = len(t), float("nan")
     rows = []
     for a, b in contacts.stances:
-        heel_down = np.flatnonzero(contacts.heel[a : b + 1])
-        hs = float(t[a + heel_down[0]]) if len(heel_down) else float(t[a])
         flat = contacts.flat(a, b)
         if flat is None:
             speed = np.linalg.norm(np.gradient(soles_W[a : b + 1, :2], axis=0), axis=1)
             k = a + int(np.argmin(speed)) if b > a else a
             flat = (k, k)
         f0, f1 = flat
+        heel_level = float(np.median(heel_W[f0 : f1 + 1, 2]))
+        toe_level = float(np.median(toe_W[f0 : f1 + 1, 2]))
+        span = slice(a, b + 1)
+        heel_down = _settled(heel_W[span], t[span], heel_level)
+        toe_down = _settled(toe_W[span], t[span], toe_level)
+        hs = a + int(np.flatnonzero(heel_down)[0]) if heel_down.any() else a
+        to = a + int(np.flatnonzero(toe_down)[-1]) if toe_down.any() else b
+        both = np.flatnonzero(heel_down & toe_down)
+        ff, ho = (a + int(both[0]), a + int(both[-1])) if len(both) else (f0, f1)
         yaw = np.arctan2(toe_dir_W[f0 : f1 + 1, 1], toe_dir_W[f0 : f1 + 1, 0])
         starts, ends = a == 0, b == n - 1
         rows.append(
             (
-                nan if starts else hs,
-                nan if starts else float(t[f0]),
-                nan if ends else float(t[f1]),
-                nan if ends else float(t[b]),
-                0.0 if starts else float(t[f0]),
-                float(t[-1]) if ends else float(t[f1]),
+                nan if starts else float(t[hs]),
+                nan if starts else float(t[ff]),
+                nan if ends else float(t[ho]),
+                nan if ends else float(t[to]),
+                0.0 if starts else float(t[ff]),
+                float(t[-1]) if ends else float(t[ho]),
                 soles_W[f0 : f1 + 1].mean(axis=0),
                 _circular_mean(yaw),
             )

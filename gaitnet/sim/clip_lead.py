@@ -49,7 +49,13 @@ from gaitnet.sim.clip_pose import BodyChain, PoseSamples, ShoeGeometry, body_cha
 from gaitnet.sim.gait_legs import R_PfromSMPL, leg_chain, smpl_pose_from_chain
 from gaitnet.sim.gait_plan import smoothstep7
 
-__all__ = ["SessionMotion", "StandingSpec", "build_session_motion", "warp_advance"]
+__all__ = [
+    "SessionMotion",
+    "median_pelvis_tilt",
+    "StandingSpec",
+    "build_session_motion",
+    "warp_advance",
+]
 
 _BLEND_SHARE = 0.8  # the blend ends at this share of the clip time to O's landing
 _MIN_BLEND_CLIP_S = 0.08  # prefer entries with at least this much clip time to blend in
@@ -185,7 +191,8 @@ def _choose_entry(track: _Track, name: str) -> _Entry:
     return good[0] if good else max(entries, key=lambda e: e.blend_clip_s)
 
 
-def _median_tilt(chain: BodyChain) -> float:
+def median_pelvis_tilt(chain: BodyChain) -> float:
+    """The median anterior tilt [rad] of the pelvis frames of ``chain`` (Z-Y-X Euler)."""
     R = chain.R_WfromP
     return float(np.median(-np.arcsin(np.clip(R[:, 2, 0], -1.0, 1.0))))
 
@@ -217,7 +224,7 @@ def _standing_pose(track: _Track, entry: _Entry, spec: StandingSpec) -> _Standin
     R_S[1 - s] = R_O
     ankles[1 - s] = sole_O + R_O @ track.shoe.ankle_in_shoe
 
-    tilt = _median_tilt(ch)
+    tilt = median_pelvis_tilt(ch)
     R_P = _yaw_matrix(heading) @ so3_exp(np.array([0.0, tilt, 0.0]))
     J = track.skel.rest_joints
     hips_P = (J[1:3] - J[0]) @ R_PfromSMPL.T  # hip joints in the pelvis frame

@@ -40,7 +40,12 @@ from gaitnet.errors import InputError
 from gaitnet.geometry import make_T, so3_exp, so3_log
 from gaitnet.motion.skeleton import LowerBodySkeleton
 from gaitnet.sim.clip_events import foot_contacts, foot_events, step_events
-from gaitnet.sim.clip_lead import SessionMotion, StandingSpec, build_session_motion
+from gaitnet.sim.clip_lead import (
+    SessionMotion,
+    StandingSpec,
+    build_session_motion,
+    median_pelvis_tilt,
+)
 from gaitnet.sim.clip_pose import (
     BodyChain,
     PoseSamples,
@@ -77,6 +82,7 @@ class ClipSource:
     start_s: float
     end_s: float
     floor_tilt_deg: float
+    pelvis_tilt_deg: float
     T_session_from_clip: np.ndarray
     motion: SessionMotion
     lead_in_s: float
@@ -99,6 +105,7 @@ class ClipSource:
                 "skeleton_source": seg.skeleton_source,
                 "height_m": seg.height_m,
                 "floor_tilt_deg": self.floor_tilt_deg,
+                "pelvis_tilt_deg": self.pelvis_tilt_deg,
                 "T_session_from_clip": np.round(self.T_session_from_clip, 12).tolist(),
                 "synthetic_s": float(np.sum(self.motion.synthetic) / seg.fps),
             },
@@ -172,7 +179,9 @@ class ClipWalk(Walk):
         for i, side in enumerate(SIDES):
             contacts = foot_contacts(t, pts[:, i, 0], pts[:, i, 1])
             toe_dir = chain.R_WfromShoe[:, i, :, 0]
-            events[side] = foot_events(side, t, contacts, pts[:, i, 2], toe_dir)
+            events[side] = foot_events(
+                side, t, contacts, pts[:, i, 2], toe_dir, pts[:, i, 0], pts[:, i, 1]
+            )
         return events, step_events(events)
 
     def _pose(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -221,24 +230,10 @@ def _fit_subject(subject: Subject, skel: LowerBodySkeleton, height_m: float) -> 
     )
 
 
-def floor_transform(poses: PoseSamples, skel: LowerBodySkeleton, shoe: ShoeGeometry) -> np.ndarray:
-    """The rigid motion ``T`` (4, 4) that lays the floor under the clip's stance feet on
-    ``z = 0`` (module docstring, step 3). Per window of :data:`_FLOOR_WINDOW_S` (about a
-    stride) the median height of the lowest sole end and its mean position give one floor
-    point (the median ignores a rigid shoe's toe dipping under the floor where a real foot
-    bends); a plane through them (its slopes held near 0 where the points span too little,
-    e.g. across a straight walk) is turned level about its point under the first frame and
-    moved to ``z = 0``."""
-    chain = poses_chain(poses, skel, shoe)
-    ends = chain.shoe_points(shoe.ankle_in_shoe, shoe.sole_points()[:2]).reshape(len(poses), 4, 3)
-    low = ends[np.arange(len(poses)), np.argmin(ends[..., 2], axis=1)]
-    window = np.floor((poses.t - poses.t[0]) / _FLOOR_WINDOW_S).astype(int)
-    points = np.array(
-        [
-            [*low[window == k, :2].mean(axis=0), np.median(low[window == k, 2])]
-            for k in np.unique(window)
-        ]
-    )
+def _level_plane(points: np.ndarray) -> np.ndarray:
+    """The rigid motion (4, 4) turning the plane through ``points`` (m, 3) level at ``z = 0``
+    about its point under the first one; its slopes are held near 0 where the points span
+    too little (e.g. across a straight walk)."""
     A = np.column_stack([np.ones(len(points)), points[:, :2] - points[0, :2]])
     prior = np.diag([0.0, _FLOOR_SLOPE_PRIOR_M, _FLOOR_SLOPE_PRIOR_M])  # slopes pulled to 0
     coef, *_ = np.linalg.lstsq(
@@ -251,6 +246,50 @@ def floor_transform(poses: PoseSamples, skel: LowerBodySkeleton, shoe: ShoeGeome
     R = so3_exp(axis / max(np.linalg.norm(axis), 1e-12) * angle)
     origin = np.array([*points[0, :2], coef[0]])
     return make_T(R, -R @ origin + np.array([origin[0], origin[1], 0.0]))
+
+
+def _flat_floor_points(chain: BodyChain, t: np.ndarray, shoe: ShoeGeometry) -> np.ndarray:
+    """One floor point per foot-flat interval (both sole ends down, :mod:`gaitnet.sim.
+    clip_events`): the mean of the sole ends' positions over it."""
+    ends = chain.shoe_points(shoe.ankle_in_shoe, shoe.sole_points()[:2])
+    points = []
+    for s in range(2):
+        contacts = foot_contacts(t, ends[:, s, 0], ends[:, s, 1])
+        for a, b in contacts.stances:
+            flat = contacts.flat(a, b)
+            if flat is not None:
+                points.append(ends[flat[0] : flat[1] + 1, s].reshape(-1, 3).mean(axis=0))
+    return np.array(points).reshape(-1, 3)
+
+
+def floor_transform(poses: PoseSamples, skel: LowerBodySkeleton, shoe: ShoeGeometry) -> np.ndarray:
+    """The rigid motion ``T`` (4, 4) that lays the floor under the clip's stance feet on
+    ``z = 0`` (module docstring, step 3). First guess: per window of
+    :data:`_FLOOR_WINDOW_S` (about a stride) the median height of the lowest sole end and its
+    mean position give one floor point. Then, twice, the feet's contacts are found on the
+    levelled clip and the plane is refitted through the foot-flat soles (one point per
+    foot flat: the mean of both sole ends over it), which the lowest end alone puts 1–2 cm
+    too low (a rigid shoe's toe dips under the floor where a real foot bends, and a flat
+    sole is never exactly level)."""
+    chain = poses_chain(poses, skel, shoe)
+    ends = chain.shoe_points(shoe.ankle_in_shoe, shoe.sole_points()[:2]).reshape(len(poses), 4, 3)
+    low = ends[np.arange(len(poses)), np.argmin(ends[..., 2], axis=1)]
+    window = np.floor((poses.t - poses.t[0]) / _FLOOR_WINDOW_S).astype(int)
+    guess = np.array(
+        [
+            [*low[window == k, :2].mean(axis=0), np.median(low[window == k, 2])]
+            for k in np.unique(window)
+        ]
+    )
+    T = _level_plane(guess)
+    J0 = skel.rest_joints[0]
+    for _ in range(2):
+        levelled = poses_chain(_transformed(poses, T[:3, :3], T[:3, 3], J0), skel, shoe)
+        points = _flat_floor_points(levelled, poses.t, shoe)
+        if len(points) < 2:
+            break
+        T = _level_plane(points) @ T
+    return T
 
 
 def _check_walking(poses: PoseSamples, skel: LowerBodySkeleton, shoe: ShoeGeometry, name: str):
@@ -333,6 +372,7 @@ def build_clip_walk(cfg: SimConfig, subject_rng: np.random.Generator) -> ClipWal
         start_s=float(seg.poses.t[0]),
         end_s=float(seg.poses.t[-1]),
         floor_tilt_deg=float(np.degrees(np.arccos(np.clip(T_floor[2, 2], -1.0, 1.0)))),
+        pelvis_tilt_deg=float(np.degrees(median_pelvis_tilt(poses_chain(clip, skel, shoe)))),
         T_session_from_clip=T,
         motion=session,
         lead_in_s=motion.lead_in_s,

@@ -76,6 +76,7 @@ SINGLE_FRAME_UNUSED: dict[str, str] = {
     "scene.exposure_range",
     "output.labels": "a segmentation data set always has label maps",
     "timing": "frame timestamps, dropped frames and the camera-IMU offset belong to a session",
+    "motion": "single frames are drawn from generated walks (play a clip with gaitnet simulate)",
 }
 
 

@@ -37,7 +37,7 @@ from gaitnet.sim.render import render_frame
 from gaitnet.sim.render_color import srgb_to_linear
 from gaitnet.sim.render_motion import Motion
 from gaitnet.sim.render_types import Lighting, RenderResult
-from gaitnet.sim.rig import CameraConfig, MountConfig
+from gaitnet.sim.rig import PITCH_RANGE_DEG, CameraConfig, MountConfig
 from gaitnet.sim.scene import SIDES, Appearance
 from gaitnet.sim.sensor_depth import DepthUnit, sample_depth_unit
 from gaitnet.sim.subject import Subject, sample_subject
@@ -188,10 +188,14 @@ class SimScene:
     mount_motion: MountMotion
     relief: FloorRelief = field(default_factory=flat_relief)
     depth_unit: DepthUnit = field(default_factory=DepthUnit)
+    pelvis_tilt_deg: float = 0.0
 
     @property
     def pitch_deg(self) -> float:
-        return float(self.mount.pitch_deg)  # type: ignore[arg-type]
+        """The camera's downward pitch from horizontal while the subject stands: the mount's
+        pitch in the pelvis frame plus the standing pelvis's anterior tilt (0 for generated
+        walks; a clip's median tilt, ``pelvis_tilt_deg``)."""
+        return float(self.mount.pitch_deg) + self.pelvis_tilt_deg  # type: ignore[arg-type]
 
     def T_WfromC(self, t_s: np.ndarray) -> np.ndarray:
         """Camera poses (n, 4, 4) at times ``t_s`` (n,): the pelvis pose times the mount's
@@ -279,7 +283,12 @@ def build_scene(cfg: SimConfig, rngs: dict[str, np.random.Generator], threads: i
     light_rng = rngs["lighting"]
     light = sample_lighting(light_rng, cfg.scene.lighting_variation)
     exposure_gain = float(light_rng.uniform(*cfg.scene.exposure_range))
-    mount = cfg.mount.with_pitch(rngs["mount"])
+    drawn = cfg.mount.with_pitch(rngs["mount"])
+    mount, tilt = drawn, 0.0
+    if walk.source is not None:  # mount.pitch_deg is from horizontal with the subject standing
+        pitch = float(drawn.pitch_deg) - walk.source.pelvis_tilt_deg  # type: ignore[arg-type]
+        mount = replace(drawn, pitch_deg=float(np.clip(pitch, *PITCH_RANGE_DEG)))
+        tilt = float(drawn.pitch_deg) - float(mount.pitch_deg)  # type: ignore[arg-type]
     mount_motion = build_mount_motion(walk, mount, mount.T_PfromC(), rngs["rig_motion"])
     return SimScene(
         subject=subject,
@@ -295,4 +304,5 @@ def build_scene(cfg: SimConfig, rngs: dict[str, np.random.Generator], threads: i
         mount_motion=mount_motion,
         relief=sample_floor_relief(rngs["floor_relief"], cfg.floor_relief, family, extent),
         depth_unit=sample_depth_unit(rngs["depth"]),
+        pelvis_tilt_deg=tilt,
     )
