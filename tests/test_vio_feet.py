@@ -103,6 +103,21 @@ def test_size_and_height_filters():
     assert len(cands) == 2 and cands[0].n_pixels >= cands[1].n_pixels
 
 
+def test_a_toe_seen_inside_the_image_counts_a_piece_cut_by_its_border_does_not():
+    """``min_area_inside_m2`` (a toe under the leg) inside the image, ``min_area_m2`` at its
+    border: the same 0.0027 / 0.0033 m² of foot pixels count only inside."""
+    T = _pose()
+    plane = _plane(T)
+    toe = _render(T, [(0.8, 0.84, 0.0, 0.04, 0.0, 0.05)])  # 0.0027 m² as seen
+    (c,) = detect_foot_candidates(toe, K, plane)
+    assert not c.at_border and 0.002 < c.area_m2 < 0.004
+    assert detect_foot_candidates(toe, K, plane, FootParams(min_area_inside_m2=0.004)) == []
+    cut = _render(T, [(1.44, 1.64, 0.0, 0.05, 0.0, 0.05)])  # 0.0033 m² left in the image
+    assert detect_foot_candidates(cut, K, plane) == []
+    (c,) = detect_foot_candidates(cut, K, plane, FootParams(min_area_m2=0.003))
+    assert c.at_border and 0.003 < c.area_m2 < 0.004
+
+
 def test_foot_at_the_image_border_is_flagged():
     T = _pose(pitch_deg=65.0)
     # the top image border sees the floor at about x = 1.54 m: a shoe across it

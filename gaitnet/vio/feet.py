@@ -88,6 +88,13 @@ class FootParams:
     """Smallest component area on the floor [m²] (``N_foot,min`` of the thesis, as an area so
     that it does not depend on resolution or distance): a fifth of a shoe's top view (~0.02 m²)
     — a foot half out of the image still counts, clutter crumbs do not."""
+    min_area_inside_m2: float = 0.002
+    """Smallest area [m²] of a component that does not touch the image border (``border_px``):
+    such a foot is cut only by the leg above it, not by the frame. A waist camera sees a stance
+    foot under a flexed knee by its toe alone: on real walks (CMU motion capture played by the
+    simulator, knees at 25–30° in early stance) that part covers 0.002–0.006 m² for most of
+    the foot flat, and ``min_area_m2`` lost most of their stances; at the border
+    ``min_area_m2`` still holds (a heel leaving the image is not a stance to extend)."""
     max_area_m2: float = 0.08
     """Largest component area [m²] (four shoes): larger low objects (a box, a step) are not feet."""
     max_length_m: float = 0.45
@@ -138,6 +145,7 @@ class FootParams:
         check_int_range("stride", self.stride, 1, 16)
         check_positive("min_area_m2", self.min_area_m2, " m²")
         check_range("max_area_m2", self.max_area_m2, self.min_area_m2, 100.0, " m²")
+        check_range("min_area_inside_m2", self.min_area_inside_m2, 0.0, self.max_area_m2, " m²")
         for name in ("max_length_m", "max_width_m", "shoe_length_m"):
             check_positive(name, getattr(self, name), " m")
         for name in ("hole_bridge_m", "toe_margin_m", "split_width_m"):
@@ -276,7 +284,11 @@ def _candidate(
     # z² / (fx fy) / |n·r| (r = (x_n, y_n, 1)); grazing rays are clamped at |n·r̂| ≥ 0.2.
     n_dot = np.maximum(np.abs(rays @ plane.n_C), 0.2 * np.linalg.norm(rays, axis=1))
     area = float(np.sum(z**2 / n_dot) / (Ks[0, 0] * Ks[1, 1]))
-    if not params.min_area_m2 <= area <= params.max_area_m2:
+    b = params.border_px
+    H_full, W_full = img.shape_full
+    at_border = bool(x0 * s <= b or y0 * s <= b or x1 * s >= W_full - b or y1 * s >= H_full - b)
+    min_area = params.min_area_m2 if at_border else params.min_area_inside_m2
+    if not min_area <= area <= params.max_area_m2:
         return None
     Q = plane.project(P)
     q2 = np.stack([Q @ img.e1, Q @ img.e2], axis=1)
@@ -317,9 +329,6 @@ def _candidate(
         p_F = plane.intersect_ray(ray)
         if p_F is None:
             return None
-    b = params.border_px
-    H_full, W_full = img.shape_full
-    at_border = bool(x0 * s <= b or y0 * s <= b or x1 * s >= W_full - b or y1 * s >= H_full - b)
     return FootCandidate(
         p_FinC=p_F,
         n_pixels=area_px,
