@@ -118,6 +118,21 @@ def test_a_toe_seen_inside_the_image_counts_a_piece_cut_by_its_border_does_not()
     assert c.at_border and 0.003 < c.area_m2 < 0.004
 
 
+def test_weak_candidates_continue_a_stance_but_never_start_one():
+    trk = StanceTracker()
+    p, h, cam = np.array([1.0, 0.1]), np.array([1.0, 0.0]), np.array([0.6, 0.0])
+    for k in range(5):  # a toe alone, seen for 5 frames: no stance
+        assert trk.update(k / 30, [p], heading_W=h, p_CinW=cam, weak=[True]) == [None]
+    assert trk.finish() == []
+    trk = StanceTracker()
+    out = [
+        trk.update(k / 30, [p], heading_W=h, p_CinW=cam, weak=[k > 0])[0] for k in range(6)
+    ]  # seen whole once, then by its toe: one stance, all six frames
+    assert out[0] is None and all(o is not None and o.stance_id == 0 for o in out[2:])
+    (stance,) = trk.finish()
+    assert stance.t_first == 0.0 and stance.t_last == pytest.approx(5 / 30)
+
+
 def test_foot_at_the_image_border_is_flagged():
     T = _pose(pitch_deg=65.0)
     # the top image border sees the floor at about x = 1.54 m: a shoe across it

@@ -65,6 +65,7 @@ from gaitnet.sim.subject import Subject, sample_subject
 __all__ = ["MIN_STRIDE_M", "ClipSource", "ClipWalk", "build_clip_walk", "floor_transform"]
 
 MIN_STRIDE_M = 0.2  # a segment whose strides are all shorter than this is not walking
+_LONGEST_STRIDE_S = 2.5  # a foot resting once in a longer segment is not walking
 _MAX_TILT_DEG = 80.0  # the pelvis channels are Z-Y-X Euler angles: no gimbal lock near 90°
 STAND_WIDTH_M = 0.165  # natural standing width (sole centres), as the generator's
 _SHOE_CLEARANCE_M = 0.03
@@ -304,9 +305,15 @@ def _check_walking(poses: PoseSamples, skel: LowerBodySkeleton, shoe: ShoeGeomet
                 "the floor and still); not a walk on level ground"
             )
         if len(c.stances) < 2:
+            length = poses.t[-1] - poses.t[0]
+            if length > _LONGEST_STRIDE_S:
+                raise InputError(
+                    f"{name}: no walking in the segment (the {side} foot rests once in "
+                    f"{length:.1f} s)"
+                )
             raise InputError(
                 f"{name}: motion.duration_s: the segment holds less than one stride of the "
-                f"{side} foot ({poses.t[-1] - poses.t[0]:.2f} s)"
+                f"{side} foot ({length:.2f} s)"
             )
         flats = [c.flat(a, b) or (a, b) for a, b in c.stances]
         xy = np.array([pts[f0 : f1 + 1, i, 2, :2].mean(axis=0) for f0, f1 in flats])

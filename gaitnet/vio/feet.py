@@ -94,7 +94,10 @@ class FootParams:
     foot under a flexed knee by its toe alone: on real walks (CMU motion capture played by the
     simulator, knees at 25–30° in early stance) that part covers 0.002–0.006 m² for most of
     the foot flat, and ``min_area_m2`` lost most of their stances; at the border
-    ``min_area_m2`` still holds (a heel leaving the image is not a stance to extend)."""
+    ``min_area_m2`` still holds (a heel leaving the image is not a stance to extend). Such a
+    candidate only continues a stance that a larger one began (``FootCandidate.weak``): on
+    generated walks the landing shoe's first sight would otherwise start the landmark a frame
+    before the foot flat that the swing fill's timing reads it as."""
     max_area_m2: float = 0.08
     """Largest component area [m²] (four shoes): larger low objects (a box, a step) are not feet."""
     max_length_m: float = 0.45
@@ -173,7 +176,8 @@ class FootCandidate:
     pixels; ``length_m``/``width_m`` the extent along/across its main floor axis (4·√λ of the
     floor-plane scatter); ``axis_C`` (3,) the main axis direction on the floor (camera frame,
     pointing forward); ``at_border`` whether it touches the image border; ``centroid_C`` the
-    projected centroid.
+    projected centroid; ``weak`` whether it is smaller than ``min_area_m2`` (admitted by
+    ``min_area_inside_m2``): the stance tracker lets it continue a stance, not start one.
     """
 
     p_FinC: np.ndarray
@@ -185,6 +189,7 @@ class FootCandidate:
     axis_C: np.ndarray
     at_border: bool
     centroid_C: np.ndarray
+    weak: bool = False
 
 
 def _plane_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -339,6 +344,7 @@ def _candidate(
         axis_C=axis_C,
         at_border=at_border,
         centroid_C=Q.mean(axis=0),
+        weak=area < params.min_area_m2,
     )
 
 

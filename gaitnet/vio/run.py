@@ -290,7 +290,11 @@ def run_vio(
             T_WfromC = _T_WfromI(state) @ T_IfromC
             p_W = [T_WfromC[:3, :3] @ c.p_FinC + T_WfromC[:3, 3] for c in candidates]
             assignments = tracker.update(
-                t, [p[:2] for p in p_W], heading_W=T_WfromC[:3, 2], p_CinW=T_WfromC[:3, 3]
+                t,
+                [p[:2] for p in p_W],
+                heading_W=T_WfromC[:3, 2],
+                p_CinW=T_WfromC[:3, 3],
+                weak=[c.weak for c in candidates],
             )
             clock["feet_frontend"] += time.thread_time() - tic
             tic = time.thread_time()

@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import ClassVar
 
@@ -198,12 +198,15 @@ class StanceTracker:
         candidates_xy: list[np.ndarray] | np.ndarray,
         heading_W: np.ndarray | None = None,
         p_CinW: np.ndarray | None = None,
+        weak: Sequence[bool] | None = None,
     ) -> list[StanceAssignment | None]:
         """Process one frame's candidates (world ``(x, y)``), return one entry per candidate.
 
         ``heading_W``: the walking direction on the floor (any length; e.g. the first two
         components of the camera's optical axis in the world); ``p_CinW``: the camera position
-        (its first two components are used). Frames must come in time order.
+        (its first two components are used); ``weak``: per candidate, True when it may only
+        continue a track (a small piece of a foot, :attr:`gaitnet.vio.feet.FootCandidate.
+        weak`), never start one. Frames must come in time order.
         """
         P = self.params
         if heading_W is not None:
@@ -251,7 +254,7 @@ class StanceTracker:
                 self._sync(tr)
                 out[i] = ("old", tr)  # type: ignore[assignment]
         for i, p in enumerate(xy):
-            if i in used_c or i in ignored:
+            if i in used_c or i in ignored or (weak is not None and weak[i]):
                 continue
             tr = self._reopen(t_s, p)
             if tr is not None:
