@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gaitnet.errors import InputError
 from gaitnet.evaluation.evaluate import evaluate_result
 from gaitnet.motion.amass import read_amass_npz
 from gaitnet.motion.augment import mirror_clip
@@ -140,6 +141,9 @@ def main() -> None:
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
     work = args.work.resolve()
+    for clip in args.clips:
+        if not clip.is_file():
+            raise InputError(f"{clip}: no such clip file")
     jobs: list[tuple[str, str, list[str]]] = []
     for clip in args.clips:
         sources = [("real", clip.resolve())]
@@ -174,4 +178,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from gaitnet.cli.scripts import run_script
+
+    raise SystemExit(run_script(main))

@@ -45,6 +45,7 @@ def test_a_bad_option_is_one_line(script: str) -> None:
         "bench_segmenter_labels.py",
         "bench_swing_errors.py",
         "bench_png.py",
+        "bench_real_motion.py",
     ],
 )
 def test_a_missing_input_is_one_line(tmp_path: Path, script: str) -> None:

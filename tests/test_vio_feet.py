@@ -118,19 +118,29 @@ def test_a_toe_seen_inside_the_image_counts_a_piece_cut_by_its_border_does_not()
     assert c.at_border and 0.003 < c.area_m2 < 0.004
 
 
-def test_weak_candidates_continue_a_stance_but_never_start_one():
-    trk = StanceTracker()
+def test_weak_candidates_make_a_stance_later_and_never_move_a_strong_ones_start():
     p, h, cam = np.array([1.0, 0.1]), np.array([1.0, 0.0]), np.array([0.6, 0.0])
-    for k in range(5):  # a toe alone, seen for 5 frames: no stance
-        assert trk.update(k / 30, [p], heading_W=h, p_CinW=cam, weak=[True]) == [None]
-    assert trk.finish() == []
-    trk = StanceTracker()
-    out = [
-        trk.update(k / 30, [p], heading_W=h, p_CinW=cam, weak=[k > 0])[0] for k in range(6)
-    ]  # seen whole once, then by its toe: one stance, all six frames
-    assert out[0] is None and all(o is not None and o.stance_id == 0 for o in out[2:])
-    (stance,) = trk.finish()
-    assert stance.t_first == 0.0 and stance.t_last == pytest.approx(5 / 30)
+
+    def run(weak: list[bool], params: StanceParams | None = None):
+        trk = StanceTracker(params)
+        out = [
+            trk.update(k / 30, [p], heading_W=h, p_CinW=cam, weak=[w])[0]
+            for k, w in enumerate(weak)
+        ]
+        return out, trk.finish()
+
+    # a toe alone: a stance once seen for weak_confirm_s (0.1 s: the 4th frame at 30 Hz)
+    out, stances = run([True] * 6)
+    assert [o is not None for o in out] == [False, False, False, True, True, True]
+    assert len(stances) == 1 and stances[0].t_first == 0.0
+    out, _ = run([True] * 6, StanceParams(weak_confirm_s=0.15))
+    assert [o is not None for o in out] == [False] * 5 + [True]
+    # a toe first, then the whole foot: confirm_s (0.06 s) counts from the whole foot
+    out, _ = run([True, False, False, False, True, True])
+    assert [o is not None for o in out] == [False, False, False, True, True, True]
+    # the whole foot first, then its toe: confirmed at the 3rd frame as without weak pieces
+    out, _ = run([False, True, True, True])
+    assert [o is not None for o in out] == [False, False, True, True]
 
 
 def test_foot_at_the_image_border_is_flagged():

@@ -95,9 +95,10 @@ class FootParams:
     simulator, knees at 25–30° in early stance) that part covers 0.002–0.006 m² for most of
     the foot flat, and ``min_area_m2`` lost most of their stances; at the border
     ``min_area_m2`` still holds (a heel leaving the image is not a stance to extend). Such a
-    candidate only continues a stance that a larger one began (``FootCandidate.weak``): on
-    generated walks the landing shoe's first sight would otherwise start the landmark a frame
-    before the foot flat that the swing fill's timing reads it as."""
+    candidate is ``weak`` (:class:`FootCandidate`): the stance tracker confirms a stance by
+    it only after ``stance.weak_confirm_s``, unless a larger one is seen (on generated walks
+    the landing shoe's first partial sight would otherwise start the landmark a frame before
+    the foot flat that the swing fill's timing reads it as)."""
     max_area_m2: float = 0.08
     """Largest component area [m²] (four shoes): larger low objects (a box, a step) are not feet."""
     max_length_m: float = 0.45
@@ -177,7 +178,7 @@ class FootCandidate:
     floor-plane scatter); ``axis_C`` (3,) the main axis direction on the floor (camera frame,
     pointing forward); ``at_border`` whether it touches the image border; ``centroid_C`` the
     projected centroid; ``weak`` whether it is smaller than ``min_area_m2`` (admitted by
-    ``min_area_inside_m2``): the stance tracker lets it continue a stance, not start one.
+    ``min_area_inside_m2``; :class:`gaitnet.vio.stance_tracker.StanceTracker`).
     """
 
     p_FinC: np.ndarray

@@ -76,6 +76,12 @@ class StanceParams:
     so the landmark's first frame, which ``gaitnet infer``'s swing fill reads as the foot flat,
     came 0.05 s earlier against the foot's heel strike and the filled swings ran ahead (foot
     NMATE of the filled frames 9.1 / 5.4 cm on a simulated 60 Hz walk)."""
+    weak_confirm_s: float = 0.1
+    """How long a track seen only by weak candidates (small pieces of a foot, the toe of a
+    stance foot under a flexed knee: :attr:`gaitnet.vio.feet.FootCandidate.weak`) must have
+    been observed before it is a stance [s]; a track with one strong observation counts
+    ``confirm_s`` from that one instead, so a landing shoe's first partial sight does not move
+    the landmark's start (it is read as the foot flat) a frame earlier."""
     max_gap_s: float = 0.15
     """Close a track not observed for this long [s] (≈ 4 frames at 30 Hz)."""
     reopen_s: float = 1.0
@@ -121,7 +127,14 @@ class StanceParams:
         for name in ("assoc_radius_m", "side_sigma_m", "same_side_sigma_m", "camera_sigma_m"):
             check_positive(name, getattr(self, name), " m")
         check_positive("max_camera_offset_m", self.max_camera_offset_m, " m")
-        for name in ("confirm_s", "max_gap_s", "reopen_s", "tie_s", "same_foot_s"):
+        for name in (
+            "confirm_s",
+            "weak_confirm_s",
+            "max_gap_s",
+            "reopen_s",
+            "tie_s",
+            "same_foot_s",
+        ):
             check_range(name, getattr(self, name), 0.0, 60.0, " s")
         for name in ("same_side_cost", "double_support_cost"):
             check_range(name, getattr(self, name), 0.0, 1e6)
@@ -163,6 +176,14 @@ class _Track:
     obs: list[tuple[float, np.ndarray]]
     stance: Stance | None = None
     closed: bool = False
+    t_strong: float | None = None  # the first observation by a whole-enough foot (not weak)
+
+    def confirmable(self, t_s: float, params: StanceParams) -> bool:
+        """Seen long enough to be a stance: ``confirm_s`` from its first strong observation,
+        or ``weak_confirm_s`` from its first one when all were weak."""
+        if self.t_strong is not None:
+            return t_s - self.t_strong >= params.confirm_s
+        return t_s - self.obs[0][0] >= params.weak_confirm_s
 
     @property
     def xy(self) -> np.ndarray:
@@ -204,9 +225,10 @@ class StanceTracker:
 
         ``heading_W``: the walking direction on the floor (any length; e.g. the first two
         components of the camera's optical axis in the world); ``p_CinW``: the camera position
-        (its first two components are used); ``weak``: per candidate, True when it may only
-        continue a track (a small piece of a foot, :attr:`gaitnet.vio.feet.FootCandidate.
-        weak`), never start one. Frames must come in time order.
+        (its first two components are used); ``weak``: per candidate, True for a small piece
+        of a foot (:attr:`gaitnet.vio.feet.FootCandidate.weak`): a track becomes a stance
+        ``confirm_s`` after its first strong observation, or ``weak_confirm_s`` after its first
+        one when all were weak. Frames must come in time order.
         """
         P = self.params
         if heading_W is not None:
@@ -246,7 +268,9 @@ class StanceTracker:
             used_t.add(j)
             tr = self._open[j]
             tr.obs.append((t_s, xy[i]))
-            if tr.stance is None and t_s - tr.obs[0][0] >= P.confirm_s:
+            if tr.t_strong is None and not (weak is not None and weak[i]):
+                tr.t_strong = t_s
+            if tr.stance is None and tr.confirmable(t_s, P):
                 self._confirm(tr, cam)
                 relabel = True
                 out[i] = ("new", tr)  # type: ignore[assignment]
@@ -254,17 +278,18 @@ class StanceTracker:
                 self._sync(tr)
                 out[i] = ("old", tr)  # type: ignore[assignment]
         for i, p in enumerate(xy):
-            if i in used_c or i in ignored or (weak is not None and weak[i]):
+            if i in used_c or i in ignored:
                 continue
+            is_weak = weak is not None and bool(weak[i])
             tr = self._reopen(t_s, p)
             if tr is not None:
                 tr.obs.append((t_s, p))
                 self._sync(tr)
                 out[i] = ("old", tr)  # type: ignore[assignment]
             else:
-                tr = _Track(obs=[(t_s, p)])
+                tr = _Track(obs=[(t_s, p)], t_strong=None if is_weak else t_s)
                 self._open.append(tr)
-                if P.confirm_s <= 0:
+                if tr.confirmable(t_s, P):
                     self._confirm(tr, cam)
                     relabel = True
                     out[i] = ("new", tr)  # type: ignore[assignment]
