@@ -34,7 +34,11 @@ DEFAULT = str(ROOT / "configs" / "sim" / "default.yaml")
 NUMBERS = [".nan", ".inf", "-.inf", "1e9", "-1e9"]
 INTS = ["-1", "1000000000", "2.5", "many"]
 BOOLS = ["maybe", "3"]
-CHOICES = {"scene.floor_family": ["marble", "7"], "gait.first_foot": ["both", "0"]}
+CHOICES = {
+    "scene.floor_family": ["marble", "7"],
+    "gait.first_foot": ["both", "0"],
+    "motion.clip": ["7", "''", "'   '", "[a, b]"],
+}
 
 
 def _leaf_type(cls: type, dotted: str) -> typing.Any:

@@ -231,6 +231,21 @@ def test_bad_clip_files_are_one_line(tmp_path: Path, change: dict, fragments: li
     assert_one_line_message(info.value, str(path), *fragments)
 
 
+def test_a_missing_clip_or_broken_rest_joints_is_one_line(tmp_path: Path, generated) -> None:
+    missing = tmp_path / "nowhere_poses.npz"
+    with pytest.raises(InputError) as info:
+        _clip_walk(missing)
+    assert_one_line_message(info.value, str(missing))
+    _, path = generated
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays["gaitnet_rest_joints"] = np.zeros((9, 3))  # every bone of length 0
+    broken = _write(tmp_path / "broken_poses.npz", **arrays)
+    with pytest.raises(InputError) as info:
+        _clip_walk(broken)
+    assert_one_line_message(info.value, str(broken), "gaitnet_rest_joints")
+
+
 def test_bad_segments_are_one_line(tmp_path: Path) -> None:
     for overrides, fragments in (
         (["motion.start_s=100"], ["motion.start_s", "outside the clip"]),

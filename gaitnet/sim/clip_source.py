@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from gaitnet.errors import InputError
-from gaitnet.motion.amass import read_amass_npz
+from gaitnet.motion.amass import REST_JOINTS_KEY, read_amass_npz
 from gaitnet.motion.skeleton import LowerBodySkeleton, builtin_skeleton, from_rest_joints
 from gaitnet.sim.clip_pose import PoseSamples, body_chain, lowpass_poses
 from gaitnet.sim.config import HEIGHT_LIMITS_M, MotionConfig
@@ -111,11 +111,11 @@ def read_clip_segment(motion: MotionConfig, subject_height_m: float | None) -> C
             f"{path}: motion.duration_s: the segment holds {len(poses)} frames, too few to play"
         )
     if clip.rest_joints is not None:
-        skeleton, source = from_rest_joints(clip.rest_joints), "rest_joints"
         try:
-            leg = np.mean(np.add(skeleton.thigh_lengths, skeleton.shank_lengths))
-        except ValueError as exc:  # pragma: no cover - from_rest_joints checked the bones
-            raise InputError(f"{path}: key 'gaitnet_rest_joints': {exc}") from None
+            skeleton, source = from_rest_joints(clip.rest_joints), "rest_joints"
+        except ValueError as exc:  # a zero-length bone
+            raise InputError(f"{path}: key {REST_JOINTS_KEY!r}: {exc}") from None
+        leg = np.mean(np.add(skeleton.thigh_lengths, skeleton.shank_lengths))
         height = float(np.clip(leg / LEG_FRACTION, *HEIGHT_LIMITS_M))
     elif subject_height_m is not None:
         height = float(subject_height_m)
