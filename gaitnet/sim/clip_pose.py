@@ -180,7 +180,7 @@ def shoe_mounting(poses: PoseSamples, skel: LowerBodySkeleton) -> np.ndarray:
     samples are those whose ankle moves horizontally slower than 0.15 m/s within 3 cm of its
     lowest height (10th percentile); the shoe is mounted so that it has there its median
     pitch and roll removed (Z-Y-X angles of ``G_ankle R_PfromSMPLᵀ``): zero for the
-    generator's own clips, about 8–10° of toe-up for the converted CMU walks."""
+    generator's own clips, up to 7° of pitch and 8° of roll on the converted CMU walks."""
     chain = body_chain(skel, poses.root_orient, poses.trans, poses.joint_aa)
     out = np.empty((2, 3, 3))
     for s in range(2):

@@ -13,7 +13,7 @@ ground-truth file. Order of work:
    shoe_mounting`) and the floor under the stance feet: a plane through the lowest of the
    four sole ends (heel and toe of both shoes) of every frame (at any instant of walking one
    foot stands), turned level at ``z = 0`` by one rigid motion of the whole clip
-   (:func:`floor_transform`: a capture volume's vertical is off by tenths of a degree, which
+   (:func:`floor_transform`: a capture volume's vertical can be off by about a degree, which
    over metres lifts the feet by centimetres); what a clip slides or sinks around that plane
    stays as recorded and is the ground truth;
 4. the segment must walk: each foot rests on the floor at least twice
