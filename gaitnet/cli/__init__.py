@@ -320,6 +320,15 @@ def _sigterm_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+def _end_progress_bars() -> None:
+    """Close the progress bars still on screen (a command stopped by a signal leaves its
+    bar's line open), so that the signal's one-line message starts its own line."""
+    from tqdm import tqdm
+
+    for bar in list(getattr(tqdm, "_instances", ())):
+        bar.close()
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``gaitnet`` with ``argv`` (default: ``sys.argv[1:]``); returns the exit status."""
     name = PROG
@@ -353,9 +362,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"{name}: error: {user_error_message(exc)}", file=sys.stderr)
             return EXIT_USER_ERROR
         except _Terminated:
+            _end_progress_bars()
             print(f"{name}: terminated", file=sys.stderr)
             return EXIT_SIGTERM
         except KeyboardInterrupt:
+            _end_progress_bars()
             print(f"{name}: interrupted", file=sys.stderr)
             return EXIT_SIGINT
         except Exception:
