@@ -15,7 +15,6 @@ from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.signal import butter, sosfiltfilt
 
 from gaitnet.geometry import (
     quat_from_rotvec,
@@ -95,6 +94,10 @@ def lowpass_poses(poses: PoseSamples, cutoff_hz: float) -> PoseSamples:
     Movement*). ``cutoff_hz`` 0 returns ``poses`` unchanged."""
     if cutoff_hz <= 0:
         return poses
+    # imported here: scipy.signal takes 0.3–0.6 s to import, which every `gaitnet simulate`
+    # (this module comes with the scene set-up) would pay for clips it does not play
+    from scipy.signal import butter, sosfiltfilt
+
     fs = (len(poses) - 1) / (poses.t[-1] - poses.t[0])
     sos = butter(_FILTER_ORDER, min(cutoff_hz / (0.5 * fs), 0.99), output="sos")
     pad = min(len(poses) - 1, 3 * (2 * len(sos) + 1))

@@ -80,6 +80,21 @@ class GroundTruthWriter:
         for name, obj in (("floor_relief.json", floor_relief), ("depth_unit.json", depth_unit)):
             atomic_write_text(self.root / name, json.dumps(obj, indent=1) + "\n")
 
+    def write_motion(self, walk: Walk, times: np.ndarray, t_ns: np.ndarray) -> None:
+        """For a played clip (``walk.source``), ``motion.json`` and ``motion_frames.csv``:
+        where each frame's pose came from (docs/groundtruth.md); nothing for a generated walk."""
+        if walk.source is None:
+            return
+        atomic_write_text(self.root / "motion.json", walk.source.to_json() + "\n")
+        rows = walk.source.frame_rows(times)
+        atomic_write_text(
+            self.root / "motion_frames.csv",
+            _csv(
+                ["t_ns", "clip_time_s", "blend_weight", "time_rate", "synthetic"],
+                [[int(t), *r[:3], int(r[3])] for t, r in zip(t_ns, rows, strict=True)],
+            ),
+        )
+
     def write_rig(
         self,
         mount: MountMotion,
@@ -256,16 +271,6 @@ class GroundTruthWriter:
                 [list(c) for c in marker_checks],
             ),
         )
-        if walk.source is not None:  # a played clip: where each frame's pose came from
-            atomic_write_text(root / "motion.json", walk.source.to_json() + "\n")
-            rows = walk.source.frame_rows(times)
-            atomic_write_text(
-                root / "motion_frames.csv",
-                _csv(
-                    ["t_ns", "clip_time_s", "blend_weight", "time_rate", "synthetic"],
-                    [[int(t), *r[:3], int(r[3])] for t, r in zip(t_ns, rows, strict=True)],
-                ),
-            )
         subject = {
             k: (list(v) if isinstance(v, tuple) else v)
             for k, v in dataclasses.asdict(walk.subject).items()

@@ -188,6 +188,7 @@ def simulate_session(
             + "".join(f"{int(t_ns[k])},{e:.6g},{d:.6g}\n" for k, (e, d) in enumerate(exposures)),
         )
         gt.write_all(walk, times, T_WfromC_all, T_CfromI, imu_truth, checks, t_ns)
+        gt.write_motion(walk, times, t_ns)
         gt.write_rig(scene.mount_motion, frames, imu_truth, imu_calibration)
         gt.write_floor_and_depth(scene.relief.to_dict(), scene.depth_unit.to_dict(cfg.sensor))
         resolved = config_text if config_text is not None else dump_config(cfg)

@@ -280,19 +280,8 @@ class StanceTracker:
         for i, p in enumerate(xy):
             if i in used_c or i in ignored:
                 continue
-            is_weak = weak is not None and bool(weak[i])
-            tr = self._reopen(t_s, p)
-            if tr is not None:
-                tr.obs.append((t_s, p))
-                self._sync(tr)
-                out[i] = ("old", tr)  # type: ignore[assignment]
-            else:
-                tr = _Track(obs=[(t_s, p)], t_strong=None if is_weak else t_s)
-                self._open.append(tr)
-                if tr.confirmable(t_s, P):
-                    self._confirm(tr, cam)
-                    relabel = True
-                    out[i] = ("new", tr)  # type: ignore[assignment]
+            out[i] = self._reopen_or_start(t_s, p, weak is not None and bool(weak[i]), cam)
+            relabel = relabel or (out[i] is not None and out[i][0] == "new")  # type: ignore[index]
         if relabel:
             self._label_sides()
         result: list[StanceAssignment | None] = []
@@ -340,6 +329,23 @@ class StanceTracker:
         st.xy = tr.xy
         st.t_last = tr.t_last
         st.obs = list(tr.obs)
+
+    def _reopen_or_start(
+        self, t_s: float, p: np.ndarray, weak: bool, cam: np.ndarray | None
+    ) -> tuple[str, _Track] | None:
+        """A candidate no open track took: it re-opens a closed stance at its point, or starts
+        a track (a stance at once when ``confirm_s`` is 0 and it is not ``weak``)."""
+        tr = self._reopen(t_s, p)
+        if tr is not None:
+            tr.obs.append((t_s, p))
+            self._sync(tr)
+            return "old", tr
+        tr = _Track(obs=[(t_s, p)], t_strong=None if weak else t_s)
+        self._open.append(tr)
+        if tr.confirmable(t_s, self.params):
+            self._confirm(tr, cam)
+            return "new", tr
+        return None
 
     def _reopen(self, t_s: float, p: np.ndarray) -> _Track | None:
         P = self.params
