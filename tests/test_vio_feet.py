@@ -478,6 +478,100 @@ def test_a_stance_beside_a_resting_foot_is_not_that_foot() -> None:
     assert [sides[s.id] for s in stances] == ["right", "left", "left"]
 
 
+def _drifting_walk(
+    drift_per_m: float = 0.0,
+    camera_left_m: float = 0.0,
+    sway_m: float = 0.0,
+    missed: tuple[int, ...] = (),
+    lateral: dict[int, float] | None = None,
+) -> tuple[list, list]:
+    """Scripted frames of a walk along a line drifting ``drift_per_m`` sideways per metre
+    while the heading (the camera's optical axis) stays +x, as CMU walking_01 does (12 cm over
+    3 m). Stance k (right first) lies 0.09 m either side of the line (``lateral`` overrides
+    the offset of some, in metres to the left); the camera is ``camera_left_m`` to the left of
+    the line (a mount off the belly's middle) and sways ``sway_m`` towards the stance foot;
+    the stances in ``missed`` are never seen. Returns the frames and (side, xy) per stance."""
+    step, period, flat = 0.6, 0.55, 0.3
+    lateral = lateral or {}
+    truth = []
+    for k in range(8):
+        side = "right" if k % 2 == 0 else "left"
+        x = 0.3 + k * step
+        y = drift_per_m * x + lateral.get(k, -0.09 if side == "right" else 0.09)
+        truth.append((side, np.array([x, y]), k * period, k * period + flat))
+    frames = []
+    for i in range(int((8 * period + 0.3) * FPS)):
+        t = i / FPS
+        k = int(t / period)
+        towards = (1.0 if k % 2 else -1.0) * np.sin(np.pi * (t % period) / period)
+        x_cam = 0.3 + t / period * step - 0.4
+        cam = np.array([x_cam, drift_per_m * x_cam + camera_left_m + sway_m * towards])
+        cands = [xy for j, (_, xy, t0, t1) in enumerate(truth) if t0 <= t <= t1 and j not in missed]
+        frames.append((t, cands, np.array([1.0, 0.0]), cam))
+    return frames, [(side, xy) for side, xy, _, _ in truth]
+
+
+def _sides(frames: list, truth: list, params: StanceParams | None = None) -> list[str]:
+    """The final sides of the stances of ``frames``, in the order of ``truth`` ("-": not
+    found)."""
+    trk = StanceTracker(params)
+    for t, cands, heading, cam in frames:
+        trk.update(t, cands, heading_W=heading, p_CinW=cam)
+    stances = trk.finish()
+    sides = trk.sides_at({s.id: s.xy for s in stances})
+    found = {int(np.argmin([np.linalg.norm(s.xy - xy) for _, xy in truth])): s for s in stances}
+    return [sides[found[k].id] if k in found else "-" for k in range(len(truth))]
+
+
+def test_a_missed_stance_on_a_drifting_walk_keeps_the_sides() -> None:
+    """Stances 3 and 4 missed on a walk drifting 4 cm per metre: the stances either side of
+    each gap are a stride apart, 2.5 cm apart sideways along the heading, and whether they are
+    one foot or two is told by the walking line (the camera's mean path), not the heading."""
+    frames, truth = _drifting_walk(drift_per_m=0.04, missed=(3,))
+    expected = [side for side, _ in truth]
+    expected[3] = "-"
+    assert _sides(frames, truth) == expected
+    frames, truth = _drifting_walk(drift_per_m=-0.04, missed=(4,))
+    expected = [side for side, _ in truth]
+    expected[4] = "-"
+    assert _sides(frames, truth) == expected
+
+
+def test_a_camera_off_the_body_middle_and_its_sway_keep_the_sides() -> None:
+    """The camera 12 cm to the left of the line between the feet (more than the feet's 9 cm):
+    its offset ``b`` is estimated from both sides' stances. Its sway of 6 cm towards the
+    stance foot averages out over ``line_window_s`` (known answer: each stance 9 cm from the
+    line, within 1.5 cm); with a window of 0 the line at each stance is the camera's mean
+    position over the stance alone, 4 cm towards that foot (the sway's mean over the first
+    0.3 s of its 0.55 s half-period: 6 cm × 0.67)."""
+    frames, truth = _drifting_walk(camera_left_m=0.12)
+    assert _sides(frames, truth) == [side for side, _ in truth]
+    frames, truth = _drifting_walk(sway_m=0.06, missed=(3,))
+    expected = [side for side, _ in truth]
+    expected[3] = "-"
+    assert _sides(frames, truth) == expected
+    for window, offset in ((0.6, 0.09), (0.0, 0.09 - 0.06 * 0.67)):
+        trk = StanceTracker(StanceParams(line_window_s=window))
+        for t, cands, heading, cam in frames:
+            trk.update(t, cands, heading_W=heading, p_CinW=cam)
+        stances = trk.finish()
+        d = trk._line_offsets(stances, trk._path_t, trk._path_xy)
+        inner = [s for s in stances if 0.5 < s.t_first < 3.5]  # a window either side
+        for st in inner:
+            sign = 1.0 if st.xy[1] < 0 else -1.0  # right of the line: positive
+            assert sign * d[st.id] == pytest.approx(offset, abs=0.015 if window else 0.003)
+
+
+def test_line_sigma_weighs_the_walking_line_against_the_alternation() -> None:
+    """A crossover step: left stance 3 lands 1 cm to the right of the walking line. The
+    alternation of sides and the 8 cm step to the left from stance 2 label it left; with a
+    walking-line scale of 2 mm, its line offset outweighs them and it is labelled right."""
+    frames, truth = _drifting_walk(lateral={3: -0.01})
+    assert _sides(frames, truth) == [side for side, _ in truth]
+    tight = _sides(frames, truth, StanceParams(line_sigma_m=0.002))
+    assert tight[3] == "right"
+
+
 @pytest.mark.parametrize("fps", [15.0, 30.0, 60.0])
 def test_a_stance_is_confirmed_after_the_same_time_at_any_frame_rate(fps: float) -> None:
     """``confirm_s``: a foot resting from t = 0 becomes a stance at the first frame at least

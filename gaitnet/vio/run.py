@@ -35,7 +35,7 @@ import logging
 import re
 import time
 from collections import Counter
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -346,7 +346,10 @@ def run_vio(
         _freeze(state, lm_id, landmarks[lm_id])
     tracker.finish()
     # sides from where the stances are in the end, not from the drifting poses of the time
-    sides = tracker.sides_at(_reported_xy(landmarks, cfg))
+    t_tracker = (times_ns[processed] - t_ref_ns).astype(np.float64) * 1e-9
+    sides = tracker.sides_at(
+        _reported_xy(landmarks, cfg), _camera_path(t_tracker, T_WfromI_f, T_IfromC)
+    )
     feet_filter = _stance_feet(landmarks, sides, cfg, t_ref_ns)
     strides_filter = _strides(feet_filter, cfg)
 
@@ -362,7 +365,9 @@ def run_vio(
             lm.xy = smoothed.landmarks[lm_id].copy()
             cov = smoothed.landmark_cov.get(lm_id)
             lm.std_xy = np.sqrt(np.clip(np.diag(cov), 0.0, None)) if cov is not None else lm.std_xy
-        sides = tracker.sides_at(_reported_xy(landmarks, cfg))
+        sides = tracker.sides_at(
+            _reported_xy(landmarks, cfg), _camera_path(t_tracker, smoothed.T_WfromI, T_IfromC)
+        )
         feet = _stance_feet(landmarks, sides, cfg, t_ref_ns)
         strides = _strides(feet, cfg)
 
@@ -387,6 +392,14 @@ def run_vio(
         skipped=skipped,
         timings_s=dict(clock),
     )
+
+
+def _camera_path(
+    t_s: np.ndarray, T_WfromI: Sequence[np.ndarray] | np.ndarray, T_IfromC: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(t_s, p_CinW (N, 3))``: the camera positions of the IMU poses ``T_WfromI``."""
+    T = np.asarray(T_WfromI)
+    return t_s, T[:, :3, :3] @ T_IfromC[:3, 3] + T[:, :3, 3]
 
 
 def _reported_xy(landmarks: dict[int, _Landmark], cfg: VioConfig) -> dict[int, np.ndarray]:
