@@ -145,3 +145,13 @@ def test_a_replaced_key_names_its_replacement(tmp_path: Path) -> None:
     assert (
         load_config(InferConfig, None, ["pipeline.gap_fill=bridge"]).pipeline.gap_fill == "bridge"
     )
+
+
+def test_the_stance_camera_scale_names_the_walking_line_scale() -> None:
+    from gaitnet.vio.config import VioConfig
+
+    with pytest.raises(
+        ConfigError, match=r"'stance.camera_sigma_m' was replaced by 'stance.line_sigma_m"
+    ):
+        load_config(VioConfig, None, ["stance.camera_sigma_m=0.15"])
+    assert load_config(VioConfig, None, ["stance.line_sigma_m=0.05"]).stance.line_sigma_m == 0.05
