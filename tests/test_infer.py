@@ -424,3 +424,52 @@ def test_a_camera_too_high_for_a_waist_warns_and_the_height_key_silences_it(
     with caplog.at_level("WARNING", logger="gaitnet.pipeline.infer"):
         infer.reconstruct(obs, cfg, predictor)
     assert "pipeline.subject_height_m" not in caplog.text
+
+
+@pytest.mark.parametrize("segmented", [True, False])
+def test_segmented_stances_run_the_filter_again_with_the_foot_pixels(
+    tiny_sim_session: Path, tiny_segmenter: Path, monkeypatch, segmented: bool
+) -> None:
+    """``pipeline.segmented_stances``: the filter runs a second time, handed each frame's foot
+    pixels by its time stamp, and its result is kept; the feet measured on the first run's
+    filter poses end on the second's (smoothed) poses. False: one run, no foot pixels."""
+    import gaitnet.pipeline.infer as infer
+    from gaitnet.config import load_config
+    from gaitnet.pipeline.foot_points import FrameFeet
+    from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
+    from gaitnet.vio.feet_segmented import FootMask
+
+    p_C = np.array([[0.1, 0.5, 1.0], [-0.1, 0.45, 0.9]])
+    mask = FootMask((3, 4), np.ones((2, 2), bool))
+
+    def fixed_feet(frame, K, T_WfromC, *args, **kwargs) -> FrameFeet:
+        foot_W = p_C @ T_WfromC[:3, :3].T + T_WfromC[:3, 3]
+        return FrameFeet(foot_W, np.zeros(frame.depth_m.shape, np.uint8), 2, None, mask)
+
+    real_run_vio = infer.run_vio
+    calls: list[dict] = []
+
+    def recorded(*args, **kwargs):
+        calls.append(kwargs)
+        result = real_run_vio(*args, **kwargs)
+        if kwargs.get("foot_masks") is None:
+            return result
+        shift = np.eye(4)  # the second run's poses: 3 cm and 2° away from the first's
+        shift[:3, :3], shift[:3, 3] = so3_exp(np.radians([0.0, 0.0, 2.0])), [0.03, -0.02, 0.01]
+        return replace(result, T_WfromC_smoothed=shift @ result.T_WfromC_filter)
+
+    monkeypatch.setattr(infer, "measure_feet", fixed_feet)
+    monkeypatch.setattr(infer, "run_vio", recorded)
+    keys = [f"pipeline.segmented_stances={str(segmented).lower()}"]
+    cfg = load_config(InferConfig, None, keys)
+    obs = infer.observe(open_session(tiny_sim_session), cfg, OnnxSegmenter(tiny_segmenter))
+    assert len(calls) == (2 if segmented else 1)
+    assert calls[0].get("foot_masks") is None
+    assert ("filter_segmented" in obs.timings_s) == segmented
+    expected = np.einsum("kij,sj->ksi", obs.vio.T_WfromC[:, :3, :3], p_C)
+    expected += obs.vio.T_WfromC[:, None, :3, 3]
+    np.testing.assert_allclose(obs.foot_W, expected, atol=1e-9)
+    if segmented:
+        masks = calls[1]["foot_masks"]
+        assert sorted(masks) == sorted(obs.t_ns.tolist())
+        assert all(m is mask for m in masks.values())

@@ -564,12 +564,50 @@ def test_a_camera_off_the_body_middle_and_its_sway_keep_the_sides() -> None:
 
 def test_line_sigma_weighs_the_walking_line_against_the_alternation() -> None:
     """A crossover step: left stance 3 lands 1 cm to the right of the walking line. The
-    alternation of sides and the 8 cm step to the left from stance 2 label it left; with a
-    walking-line scale of 2 mm, its line offset outweighs them and it is labelled right."""
+    alternation of sides, the step timing and the 8 cm step to the left from stance 2 label
+    it left; with a walking-line scale of 0.5 mm, its line offset outweighs them and it is
+    labelled right."""
     frames, truth = _drifting_walk(lateral={3: -0.01})
     assert _sides(frames, truth) == [side for side, _ in truth]
-    tight = _sides(frames, truth, StanceParams(line_sigma_m=0.002))
+    tight = _sides(frames, truth, StanceParams(line_sigma_m=0.0005))
     assert tight[3] == "right"
+
+
+def test_step_timing_tells_alternation_and_a_missed_stance_apart() -> None:
+    """Feet on one line (a narrow walk, no lateral cue) after a first step 9 cm to the right,
+    stance 3 missed: one step time between two starts means two feet, two step times one
+    foot (``step_timing_cost``); without it every stance after the first two takes the side
+    of the one before (the weak alternation prior loses to the same-side fit on one line)."""
+    frames, truth = _drifting_walk(lateral={k: 0.0 for k in range(1, 8)}, missed=(3,))
+    expected = [side for side, _ in truth]
+    expected[3] = "-"
+    assert _sides(frames, truth) == expected
+    off = _sides(frames, truth, StanceParams(step_timing_cost=0.0))
+    assert off != expected
+
+
+def test_segmented_candidates_find_only_feet_the_depth_does_not() -> None:
+    """Candidates from the segmenter's foot pixels (``segmented``) never join a stance seen in
+    depth, nor start one where such a stance rests: a foot seen in depth for 0.2 s and then
+    only in its pixels for 0.3 s keeps its start, end and point; a foot seen only in its
+    pixels is a stance (after ``weak_confirm_s``), and a depth sighting joins it."""
+    heading, cam = np.array([1.0, 0.0]), np.array([0.5, 0.0])
+    A, B = np.array([1.0, -0.08]), np.array([1.6, 0.08])
+    trk = StanceTracker()
+    for i in range(16):
+        t = i / FPS
+        cands, seg = [A + [0.01, 0.0]] if i >= 6 else [A], [i >= 6]
+        if i >= 4:
+            cands.append(B)
+            seg.append(i < 12)  # B: only its pixels, then depth
+        trk.update(t, cands, heading_W=heading, p_CinW=cam, weak=seg, segmented=seg)
+    stances = sorted(trk.finish(), key=lambda s: s.t_first)
+    assert len(stances) == 2
+    a, b = stances
+    assert a.t_last == pytest.approx(5 / FPS) and np.allclose(a.xy, A)
+    assert a.n_obs == 6
+    assert b.t_first == pytest.approx(4 / FPS) and b.t_last == pytest.approx(15 / FPS)
+    assert np.allclose(b.xy, B)
 
 
 @pytest.mark.parametrize("fps", [15.0, 30.0, 60.0])

@@ -105,6 +105,11 @@ class PipelineParams:
     workers: int = 2
     """Threads that segment frames at once (HHA, the network and the post-processing of
     different frames overlap; each network call uses ``models.threads``)."""
+    segmented_stances: bool = True
+    """Run the filter a second time with the segmenter's foot pixels, so that a planted foot
+    the depth image does not show (a toe in the stereo shadow of the near thigh, under a knee
+    flexed in early stance) is a stance landmark too (:mod:`gaitnet.vio.feet_segmented`);
+    false: the filter's first run, from depth alone, is the result."""
     subject_height_m: float = 0.0
     """Body height for the anthropometric skeleton [m]; 0: from the standing camera height
     (``camera_height_fraction``)."""

@@ -26,6 +26,7 @@ from gaitnet.segmentation.postprocess import (
     foot_keypoints,
     kept_feet_labels,
 )
+from gaitnet.vio.feet_segmented import FootMask
 
 __all__ = ["FrameFeet", "floor_in_camera", "measure_feet"]
 
@@ -37,13 +38,16 @@ class FrameFeet:
     """One frame's measured feet: ``foot_W`` (2, 3) world points of the left and right foot
     (a row of NaN where not seen), the label map after the post-processing (foot pixels only
     where a foot was kept: :func:`~gaitnet.segmentation.postprocess.kept_feet_labels`) and the
-    number of foot blobs, and the midpoint of the two feet along the camera's left axis where
-    they were sided apart (:func:`gaitnet.segmentation.midline.pair_midpoint`; else None)."""
+    number of foot blobs, the midpoint of the two feet along the camera's left axis where
+    they were sided apart (:func:`gaitnet.segmentation.midline.pair_midpoint`; else None), and
+    the segmenter's foot pixels before the post-processing (for the filter's second run,
+    ``pipeline.segmented_stances``; None: no foot pixel)."""
 
     foot_W: np.ndarray
     labels: np.ndarray
     n_blobs: int
     pair_midpoint_m: float | None = None
+    foot_mask: FootMask | None = None
 
 
 def floor_in_camera(T_WfromC: np.ndarray) -> FloorPlane:
@@ -86,5 +90,9 @@ def measure_feet(
         if side in SIDES and np.isnan(foot_W[SIDES.index(side), 0]):
             foot_W[SIDES.index(side)] = p_W
     return FrameFeet(
-        foot_W, kept_feet_labels(labels, feet), len(feet), pair_midpoint(feet, feet_params)
+        foot_W,
+        kept_feet_labels(labels, feet),
+        len(feet),
+        pair_midpoint(feet, feet_params),
+        FootMask.from_labels(labels),  # label 1: foot
     )

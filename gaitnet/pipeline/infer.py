@@ -64,6 +64,7 @@ from gaitnet.pipeline.swing_fill import swing_fill
 from gaitnet.segmentation.midline import MidlineEstimate
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
 from gaitnet.segmentation.postprocess import FootKeypointParams
+from gaitnet.vio.feet_segmented import FootMask
 from gaitnet.vio.result import VioResult
 from gaitnet.vio.run import run_vio
 
@@ -174,15 +175,19 @@ def observe(
     """Steps 1–2 (module docstring), side by side: the filter hands each frame it has processed,
     with its camera pose, to ``pipeline.workers`` segmentation threads (onnxruntime, OpenCV and
     most of numpy release the GIL) and goes on; HHA takes the filter's gravity and floor. At
-    most ``2 × workers`` frames wait, so the filter is held back when the segmenter lags. Once
-    the smoother has run, each measured foot point is moved from the filter's camera pose to
-    the smoothed one (``T_s T_f⁻¹``: the point stays where it is in the camera frame).
+    most ``2 × workers`` frames wait, so the filter is held back when the segmenter lags. With
+    ``pipeline.segmented_stances`` the filter then runs again, handed the segmenter's foot
+    pixels of every frame (:func:`gaitnet.vio.run.run_vio` ``foot_masks``), and its second
+    result is the one kept. Each measured foot point is moved from the first run's filter
+    camera pose to the result's (smoothed) one (``T_s T_f⁻¹``: the point stays where it is in
+    the camera frame).
 
     ``timings_s``: ``filter`` (wall seconds of the filter and smoother, the segmentation
     running beside it), ``segmenter_wait`` (wall seconds spent on the last frames after the
     filter), ``segmenter_cpu`` (CPU seconds of the segmentation threads, summed).
     """
     timings: dict[str, float] = {"segmenter_cpu": 0.0}
+    masks: dict[int, FootMask] = {}
 
     def bar(stage: str) -> Progress | None:
         return progress(stage) if progress is not None else None
@@ -212,6 +217,8 @@ def observe(
             midline.add(feet.pair_midpoint_m, up_C=T_filter[len(feet_f)][2, :3])
             feet_f.append(feet.foot_W)
             frame_ns.append(t_ns)
+            if feet.foot_mask is not None and cfg.pipeline.segmented_stances:
+                masks[t_ns] = feet.foot_mask
             timings["segmenter_cpu"] += cpu_s
             if keep_labels is not None:
                 keep_labels(t_ns, feet.labels)
@@ -250,6 +257,18 @@ def observe(
         raise SessionError(f"the filter processed {n} frame(s); need at least 2")
     if len(feet_f) != n:  # run_vio calls on_frame once per processed frame
         raise RuntimeError(f"segmented {len(feet_f)} frames, the filter processed {n}")
+    if masks:
+        t0 = time.perf_counter()
+        again = run_vio(session, cfg.vio, progress=bar("filter, segmented feet"), foot_masks=masks)
+        timings["filter_segmented"] = time.perf_counter() - t0
+        if np.array_equal(again.t_s, vio.t_s):
+            vio = again
+        else:  # never seen: both runs refuse the same frames (the feet change no pose check)
+            log.warning(
+                "the filter's run with the segmented feet processed other frames than the "
+                "first (%d against %d); the first run is kept",
+                len(again.t_s), n,
+            )  # fmt: skip
     T_f = np.array(T_filter)
     T_move = vio.T_WfromC @ np.linalg.inv(T_f)  # filter pose → smoothed pose, per frame
     measured = np.einsum("kij,ksj->ksi", T_move[:, :3, :3], np.array(feet_f))

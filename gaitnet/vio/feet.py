@@ -143,6 +143,20 @@ class FootParams:
     stance foot between the two (a simulated session, ``gait.toe_out_deg=20
     gait.step_width_m=0.03``, seed 9110)."""
 
+    segmented_max_depth_fraction: float = 0.5
+    """A component of the segmenter's foot pixels is a candidate of its own
+    (:mod:`gaitnet.vio.feet_segmented`, ``gaitnet infer`` with ``pipeline.segmented_stances``)
+    only when at most this share of its pixels have depth (1: always); the others are the depth
+    candidates' to find or refuse (a swing foot above ``h_max_m``)."""
+    shoe_width_m: float = 0.10
+    """Outside width of the shoe [m]: a candidate from the segmenter's foot pixels that shows
+    less than this across lies half of it out from its inner edge
+    (:mod:`gaitnet.vio.feet_segmented`)."""
+    segmented_apart_m: float = 0.15
+    """A candidate from the segmenter's foot pixels closer than this [m] to one from depth is
+    that foot again and is dropped (half a shoe's length: the toe-based points of one shoe lie
+    within a few cm)."""
+
     def __post_init__(self) -> None:
         check_range("h_min_m", self.h_min_m, 0.0, 1.0, " m")
         check_range("h_max_m", self.h_max_m, self.h_min_m, 2.0, " m")
@@ -150,9 +164,10 @@ class FootParams:
         check_positive("min_area_m2", self.min_area_m2, " m²")
         check_range("max_area_m2", self.max_area_m2, self.min_area_m2, 100.0, " m²")
         check_range("min_area_inside_m2", self.min_area_inside_m2, 0.0, self.max_area_m2, " m²")
-        for name in ("max_length_m", "max_width_m", "shoe_length_m"):
+        for name in ("max_length_m", "max_width_m", "shoe_length_m", "shoe_width_m"):
             check_positive(name, getattr(self, name), " m")
-        for name in ("hole_bridge_m", "toe_margin_m", "split_width_m"):
+        check_range("segmented_max_depth_fraction", self.segmented_max_depth_fraction, 0.0, 1.0)
+        for name in ("hole_bridge_m", "toe_margin_m", "split_width_m", "segmented_apart_m"):
             check_range(name, getattr(self, name), 0.0, 10.0, " m")
         check_int_range("min_pixels", self.min_pixels, 1)
         check_int_range("max_candidates", self.max_candidates, 1)
@@ -178,7 +193,9 @@ class FootCandidate:
     floor-plane scatter); ``axis_C`` (3,) the main axis direction on the floor (camera frame,
     pointing forward); ``at_border`` whether it touches the image border; ``centroid_C`` the
     projected centroid; ``weak`` whether it is smaller than ``min_area_m2`` (admitted by
-    ``min_area_inside_m2``; :class:`gaitnet.vio.stance_tracker.StanceTracker`).
+    ``min_area_inside_m2``; :class:`gaitnet.vio.stance_tracker.StanceTracker`); ``segmented``
+    whether it was found in the segmenter's foot pixels, not in depth
+    (:mod:`gaitnet.vio.feet_segmented`).
     """
 
     p_FinC: np.ndarray
@@ -191,6 +208,7 @@ class FootCandidate:
     at_border: bool
     centroid_C: np.ndarray
     weak: bool = False
+    segmented: bool = False
 
 
 def _plane_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

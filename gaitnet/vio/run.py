@@ -35,7 +35,7 @@ import logging
 import re
 import time
 from collections import Counter
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -48,6 +48,7 @@ from gaitnet.vio import covariance
 from gaitnet.vio.config import VioConfig
 from gaitnet.vio.errors import FilterDivergedError
 from gaitnet.vio.feet import detect_foot_candidates
+from gaitnet.vio.feet_segmented import FootMask, segmented_foot_candidates
 from gaitnet.vio.gait import Stance, strides_from_stances
 from gaitnet.vio.imu_propagation import propagate_to
 from gaitnet.vio.initialise import initialise, up_in_camera
@@ -113,12 +114,15 @@ def run_vio(
     cfg: VioConfig,
     progress: Progress | None = None,
     on_frame: Callable[[Frame, np.ndarray], None] | None = None,
+    foot_masks: Mapping[int, FootMask] | None = None,
 ) -> VioResult:
     """Run the filter, the smoother and the gait analysis on ``source`` (module docstring).
 
     ``on_frame(frame, T_WfromC)``: called once per processed frame, in order, with the frame and
     the filter's camera pose after its updates (e.g. to segment the frame while the filter goes
-    on: ``gaitnet infer``); the frame is not decoded twice.
+    on: ``gaitnet infer``); the frame is not decoded twice. ``foot_masks``: the segmenter's
+    foot pixels by frame time stamp [ns]; feet they show where the depth image has none are
+    stance-foot candidates too (:mod:`gaitnet.vio.feet_segmented`).
     """
     from gaitnet.vio.apriltags import detect_board_pose, imu_pose_from_camera
     from gaitnet.vio.foot_model import foot_measurement, landmark_from_observation
@@ -285,6 +289,11 @@ def run_vio(
             candidates = (
                 [] if plane is None else detect_foot_candidates(frame.depth_m, K, plane, cfg.feet)
             )
+            mask = None if foot_masks is None else foot_masks.get(frame.t_ns)
+            if mask is not None and plane is not None:
+                candidates += segmented_foot_candidates(
+                    mask, frame.depth_m, K, plane, cfg.feet, candidates
+                )
             if plane is None:
                 skip("frame", "no floor plane")
             T_WfromC = _T_WfromI(state) @ T_IfromC
@@ -295,6 +304,7 @@ def run_vio(
                 heading_W=T_WfromC[:3, 2],
                 p_CinW=T_WfromC[:3, 3],
                 weak=[c.weak for c in candidates],
+                segmented=[c.segmented for c in candidates],
             )
             clock["feet_frontend"] += time.thread_time() - tic
             tic = time.thread_time()

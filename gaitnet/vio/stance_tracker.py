@@ -28,15 +28,17 @@ drifting path between stances a stride apart): different sides cost ``softplus(�
 (``s = +1`` right, ``−1`` left: a right foot lies to the right of the left one), the same side
 costs ``same_side_cost + ½ (d / σ_same)²`` (normally feet alternate; a missed stance breaks
 that, but then both lie on one line), and two stances down at the same time (double support,
-standing) must differ (a large cost). A unary term ``softplus(−s (d_L − b) / σ_L)`` uses the
-offset ``d_L`` from the walking line: the mean camera position over the stance and
-``line_window_s`` either side of it (a step before and after, so the pelvis' sway towards the
-stance foot cancels), less ``b``, the camera's own offset from the line between the feet (a
-mount off the belly's middle): the midpoint of the mean offsets of the stances labelled left and
-right, estimated from a first labelling with ``b = 0`` (when both sides are present). Where a
-stance is missed, the two stances on either side of the gap lie on one line whatever their sides
-and the pairwise costs cannot tell; the walking line can (real walks, CMU motion capture: 5 of
-46 stances labelled the wrong side with a unary on the camera's position at the time, σ 0.15 m).
+standing) must differ (a large cost). Timing: two consecutive stances that begin about one step
+time apart (the walk's median) cost ``step_timing_cost`` more on one side, two step times apart
+(a stance missed between) on two. A unary term ``softplus(−s (d_L − b) / σ_L)`` uses the offset
+``d_L`` from the walking line: the mean camera position over the stance and ``line_window_s``
+either side of it (a step before and after, so the pelvis' sway towards the stance foot
+cancels), less ``b``, the camera's own offset from the line between the feet (a mount off the
+belly's middle): the midpoint of the mean offsets of the stances labelled left and right,
+estimated from a first labelling with ``b = 0`` (when both sides are present). Where a stance is
+missed, the two stances on either side of the gap lie on one line whatever their sides and the
+pairwise costs cannot tell; the walking line can (real walks, CMU motion capture: 5 of 46
+stances labelled the wrong side with a unary on the camera's position at the time, σ 0.15 m).
 This labels standing (both feet down side by side), walking (alternation + step width) and one
 foot seen alone. Candidates far to the side of the camera (``max_camera_offset_m``) are ignored:
 low objects on the floor are not feet. A stance that begins where the stance before it rested,
@@ -130,6 +132,14 @@ class StanceParams:
     same time less than ``assoc_radius_m`` apart (one foot found twice). 0: neither rule."""
     same_foot_s: float = 0.2
     """See ``same_foot_m`` [s]: a foot lifted and set down elsewhere swings for 0.35–0.45 s."""
+    step_timing_cost: float = 1.0
+    """Cost [nats] against two consecutive stances that begin one step time apart (the median
+    gap between consecutive starts of 0.3–1.0 s) having one side, and against two that begin
+    two step times apart (a stance missed between) having two; full at the multiple, none
+    half a step off it; not for stances down at once or closer than ``same_foot_m``. Where a
+    stance is missed on a walk that curves, the walking line and the lateral offsets may both
+    mislead (the body leans into the curve, off the line between the feet); the timing does
+    not. 0: off."""
 
     # keys of older configs and what took their place (named in the error)
     REPLACED_KEYS: ClassVar[dict[str, str]] = {
@@ -141,6 +151,7 @@ class StanceParams:
         for name in ("assoc_radius_m", "side_sigma_m", "same_side_sigma_m", "line_sigma_m"):
             check_positive(name, getattr(self, name), " m")
         check_positive("max_camera_offset_m", self.max_camera_offset_m, " m")
+        check_range("step_timing_cost", self.step_timing_cost, 0.0, 100.0)
         for name in (
             "confirm_s",
             "weak_confirm_s",
@@ -191,6 +202,7 @@ class _Track:
     stance: Stance | None = None
     closed: bool = False
     t_strong: float | None = None  # the first observation by a whole-enough foot (not weak)
+    by_depth: bool = False  # confirmed at a candidate from depth (not from segmentation)
 
     def confirmable(self, t_s: float, params: StanceParams) -> bool:
         """Seen long enough to be a stance: ``confirm_s`` from its first strong observation,
@@ -206,6 +218,11 @@ class _Track:
     @property
     def t_last(self) -> float:
         return self.obs[-1][0]
+
+
+def _assignment(kind: str, tr: _Track) -> StanceAssignment:
+    """What :meth:`StanceTracker.update` reports for a candidate that ``tr`` took."""
+    return StanceAssignment(tr.stance.side, tr.stance.id, kind == "new")  # type: ignore[union-attr]
 
 
 def _softplus(x: float) -> float:
@@ -236,6 +253,7 @@ class StanceTracker:
         heading_W: np.ndarray | None = None,
         p_CinW: np.ndarray | None = None,
         weak: Sequence[bool] | None = None,
+        segmented: Sequence[bool] | None = None,
     ) -> list[StanceAssignment | None]:
         """Process one frame's candidates (world ``(x, y)``), return one entry per candidate.
 
@@ -244,7 +262,14 @@ class StanceTracker:
         (its first two components are used); ``weak``: per candidate, True for a small piece
         of a foot (:attr:`gaitnet.vio.feet.FootCandidate.weak`): a track becomes a stance
         ``confirm_s`` after its first strong observation, or ``weak_confirm_s`` after its first
-        one when all were weak. Frames must come in time order.
+        one when all were weak; ``segmented``: per candidate, True for one found in the
+        segmenter's foot pixels where depth has none (:mod:`gaitnet.vio.feet_segmented`): it
+        never joins a stance confirmed at a depth candidate, and is ignored within
+        ``assoc_radius_m`` of one seen less than ``reopen_s`` ago (that foot is found; its
+        segmented sightings would only move its start, end and point); it may confirm, and
+        then go on observing, a track that depth saw too briefly (a landing shoe seen for two
+        frames, then hidden).
+        Frames must come in time order.
         """
         P = self.params
         if heading_W is not None:
@@ -263,19 +288,16 @@ class StanceTracker:
             ignored = {
                 i for i, p in enumerate(xy) if abs((p - cam) @ right) > P.max_camera_offset_m
             }
-        # close tracks not seen for too long
-        for tr in list(self._open):
-            if t_s - tr.t_last > P.max_gap_s:
-                self._open.remove(tr)
-                if tr.stance is not None:
-                    tr.closed = True
-                    self._closed.append(tr)
+        seg = [segmented is not None and bool(segmented[i]) for i in range(len(xy))]
+        ignored |= {i for i, p in enumerate(xy) if seg[i] and self._near_depth_stance(t_s, p)}
+        self._close_stale(t_s)
         # greedy nearest-first association with open tracks
         pairs = sorted(
             (float(np.linalg.norm(p - tr.xy)), i, j)
             for i, p in enumerate(xy)
             if i not in ignored
             for j, tr in enumerate(self._open)
+            if not (seg[i] and tr.by_depth)
         )
         used_c: set[int] = set()
         used_t: set[int] = set()
@@ -290,6 +312,7 @@ class StanceTracker:
             if tr.t_strong is None and not (weak is not None and weak[i]):
                 tr.t_strong = t_s
             if tr.stance is None and tr.confirmable(t_s, P):
+                tr.by_depth = not seg[i]
                 self._confirm(tr)
                 relabel = True
                 out[i] = ("new", tr)  # type: ignore[assignment]
@@ -299,19 +322,11 @@ class StanceTracker:
         for i, p in enumerate(xy):
             if i in used_c or i in ignored:
                 continue
-            out[i] = self._reopen_or_start(t_s, p, weak is not None and bool(weak[i]))
+            out[i] = self._reopen_or_start(t_s, p, weak is not None and bool(weak[i]), seg[i])
             relabel = relabel or (out[i] is not None and out[i][0] == "new")  # type: ignore[index]
         if relabel:
             self._label_sides()
-        result: list[StanceAssignment | None] = []
-        for o in out:
-            if o is None:
-                result.append(None)
-            else:
-                kind, tr = o  # type: ignore[misc]
-                st = tr.stance
-                result.append(StanceAssignment(st.side, st.id, kind == "new"))
-        return result
+        return [None if o is None else _assignment(*o) for o in out]  # type: ignore[misc]
 
     def finish(self) -> list[Stance]:
         """Close every track and return all stances with their final side labels."""
@@ -346,7 +361,29 @@ class StanceTracker:
         st.t_last = tr.t_last
         st.obs = list(tr.obs)
 
-    def _reopen_or_start(self, t_s: float, p: np.ndarray, weak: bool) -> tuple[str, _Track] | None:
+    def _close_stale(self, t_s: float) -> None:
+        """Close the tracks not observed for ``max_gap_s``."""
+        for tr in list(self._open):
+            if t_s - tr.t_last > self.params.max_gap_s:
+                self._open.remove(tr)
+                if tr.stance is not None:
+                    tr.closed = True
+                    self._closed.append(tr)
+
+    def _near_depth_stance(self, t_s: float, p: np.ndarray) -> bool:
+        """Whether ``p`` lies within ``assoc_radius_m`` of a stance confirmed at a depth
+        candidate, open or closed less than ``reopen_s`` ago."""
+        P = self.params
+        return any(
+            tr.by_depth
+            and t_s - tr.t_last <= P.reopen_s
+            and np.linalg.norm(p - tr.xy) <= P.assoc_radius_m
+            for tr in (*self._open, *self._closed)
+        )
+
+    def _reopen_or_start(
+        self, t_s: float, p: np.ndarray, weak: bool, segmented: bool = False
+    ) -> tuple[str, _Track] | None:
         """A candidate no open track took: it re-opens a closed stance at its point, or starts
         a track (a stance at once when ``confirm_s`` is 0 and it is not ``weak``)."""
         tr = self._reopen(t_s, p)
@@ -357,6 +394,7 @@ class StanceTracker:
         tr = _Track(obs=[(t_s, p)], t_strong=None if weak else t_s)
         self._open.append(tr)
         if tr.confirmable(t_s, self.params):
+            tr.by_depth = not segmented
             self._confirm(tr)
             return "new", tr
         return None
@@ -436,6 +474,46 @@ class StanceTracker:
             return labels
         return self._viterbi(stances, d_line, 0.5 * (float(np.mean(left)) + float(np.mean(right))))
 
+    def _step_time(self, st: list[Stance]) -> float | None:
+        """The walk's step time [s]: the median of the gaps between consecutive stances'
+        starts that lie within 0.3–1.0 s (a step at any walking speed; a gap of two steps,
+        a stance missed between, is longer at any but the fastest), None from fewer than 3."""
+        gaps = np.diff([s.t_first for s in st])
+        steps = gaps[(gaps >= 0.3) & (gaps <= 1.0)]
+        return float(np.median(steps)) if len(steps) >= 3 else None
+
+    def _transition(
+        self, a: Stance, b: Stance, d_line: Mapping[int, float | None], step_s: float | None
+    ) -> np.ndarray:
+        """Costs ``[side of a, side of b]`` (left, right) of consecutive stances ``a`` → ``b``
+        (module docstring)."""
+        P = self.params
+        h = a.heading + b.heading
+        h = h / np.linalg.norm(h) if np.linalg.norm(h) > 1e-9 else b.heading
+        da, db = d_line[a.id], d_line[b.id]
+        if da is not None and db is not None:
+            d = db - da
+        else:
+            d = float((b.xy - a.xy) @ np.array([h[1], -h[0]]))
+        overlap = b.t_first <= a.t_last
+        # a's foot again: b begins where a rested after a was last seen, too soon for a
+        # swing, or both are down at once closer together than two candidates of one foot
+        apart = float(np.linalg.norm(b.xy - a.xy))
+        same_foot = (0.0 < b.t_first - a.t_last < P.same_foot_s and apart < P.same_foot_m) or (
+            overlap and apart < min(P.assoc_radius_m, P.same_foot_m)
+        )
+        same = P.same_side_cost + 0.5 * (d / P.same_side_sigma_m) ** 2
+        if overlap and not same_foot:
+            same += P.double_support_cost
+        other = [_softplus(-sb * d / P.side_sigma_m) for sb in (-1.0, 1.0)]
+        if same_foot:
+            other = [c + P.double_support_cost for c in other]
+        if step_s is not None and not overlap and apart >= P.same_foot_m:
+            n = (b.t_first - a.t_first) / step_s  # one step: two feet; two: one foot
+            same += P.step_timing_cost * max(0.0, 1.0 - 2.0 * abs(n - 1.0))
+            other = [c + P.step_timing_cost * max(0.0, 1.0 - 2.0 * abs(n - 2.0)) for c in other]
+        return np.array([[same, other[1]], [other[0], same]])
+
     def _viterbi(
         self, stances: list[Stance], d_line: Mapping[int, float | None], bias: float
     ) -> dict[int, str]:
@@ -459,41 +537,14 @@ class StanceTracker:
             d = d_line[s.id]
             return 0.0 if d is None else _softplus(-sg * (d - bias) / P.line_sigma_m)
 
+        step_s = self._step_time(st)
         cost = np.array([unary(st[0], sg) for sg in signs])
         back = []
         for a, b in zip(st[:-1], st[1:], strict=True):
-            h = a.heading + b.heading
-            h = h / np.linalg.norm(h) if np.linalg.norm(h) > 1e-9 else b.heading
-            da, db = d_line[a.id], d_line[b.id]
-            if da is not None and db is not None:
-                d = db - da
-            else:
-                d = float((b.xy - a.xy) @ np.array([h[1], -h[0]]))
-            overlap = b.t_first <= a.t_last
-            # a's foot again: b begins where a rested after a was last seen, too soon for a
-            # swing, or both are down at once closer together than two candidates of one foot
-            apart = float(np.linalg.norm(b.xy - a.xy))
-            same_foot = (0.0 < b.t_first - a.t_last < P.same_foot_s and apart < P.same_foot_m) or (
-                overlap and apart < min(P.assoc_radius_m, P.same_foot_m)
-            )
-            new = np.empty(2)
-            arg = np.empty(2, dtype=int)
-            for jb, sb in enumerate(signs):
-                best = math.inf
-                for ja, sa in enumerate(signs):
-                    if sa != sb:
-                        c = _softplus(-sb * d / P.side_sigma_m)
-                        if same_foot:
-                            c += P.double_support_cost
-                    else:
-                        c = P.same_side_cost + 0.5 * (d / P.same_side_sigma_m) ** 2
-                        if overlap and not same_foot:
-                            c += P.double_support_cost
-                    if cost[ja] + c < best:
-                        best, arg[jb] = cost[ja] + c, ja
-                new[jb] = best + unary(b, sb)
-            cost = new
-            back.append(arg.copy())
+            total = cost[:, None] + self._transition(a, b, d_line, step_s)
+            arg = np.argmin(total, axis=0)
+            cost = total[arg, [0, 1]] + np.array([unary(b, sg) for sg in signs])
+            back.append(arg)
         j = int(np.argmin(cost))
         labels = [j]
         for arg in reversed(back):
