@@ -3,10 +3,10 @@
 
 import numpy as np
 import pytest
+from test_vio_feet import K, _plane, _pose, _render, _shoe, _to_world
 
 from gaitnet.vio.feet import FootParams, detect_foot_candidates
 from gaitnet.vio.feet_segmented import FootMask, segmented_foot_candidates
-from tests.test_vio_feet import K, _plane, _pose, _render, _shoe, _to_world
 
 PARAMS = FootParams(shoe_length_m=0.26, toe_margin_m=0.0)
 
