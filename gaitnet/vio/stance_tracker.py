@@ -19,10 +19,10 @@ A track not observed for ``max_gap_s`` is closed: the foot left (lifted, or out 
 closed stance observed again within ``reopen_s`` at the same point (the foot was hidden by the
 other leg) is re-opened under the same id instead of starting a duplicate.
 
-Left/right. Labels come from a two-state Viterbi over all stances in order of their start, re-
-run whenever a stance is confirmed (so earlier labels may be corrected; :meth:`finish` returns
-the final ones). Pairwise costs between consecutive stances ``a`` → ``b``, with ``d`` the
-lateral offset of ``b`` from ``a`` (positive to the right of the walking direction; the
+Left/right. Labels come from a two-state Viterbi over all stances in order of their start,
+re-run whenever a stance is confirmed (so earlier labels may be corrected; :meth:`finish`
+returns the final ones). Pairwise costs between consecutive stances ``a`` → ``b``, with ``d``
+the lateral offset of ``b`` from ``a`` (positive to the right of the walking direction; the
 difference of their offsets ``d_L`` from the walking line below, which follows a curving or
 drifting path between stances a stride apart): different sides cost ``softplus(−s_b d / σ)``
 (``s = +1`` right, ``−1`` left: a right foot lies to the right of the left one), the same side
@@ -37,16 +37,15 @@ cancels), less ``b``, the camera's own offset from the line between the feet (a 
 belly's middle): the midpoint of the mean offsets of the stances labelled left and right,
 estimated from a first labelling with ``b = 0`` (when both sides are present). Where a stance is
 missed, the two stances on either side of the gap lie on one line whatever their sides and the
-pairwise costs cannot tell; the walking line can (real walks, CMU motion capture: 5 of 46
-stances labelled the wrong side with a unary on the camera's position at the time, σ 0.15 m).
-This labels standing (both feet down side by side), walking (alternation + step width) and one
-foot seen alone. Candidates far to the side of the camera (``max_camera_offset_m``) are ignored:
-low objects on the floor are not feet. A stance that begins where the stance before it rested,
-after it but too soon for a swing (``same_foot_m``, ``same_foot_s``), or while it rests but
-closer to it than ``assoc_radius_m``, is that foot reported again (a track split when the pose
-jumps) and must have its side: left to the other costs, the double-support term or the camera's
-offset could label it the other foot (seen in simulation at the last step, where the end tag
-sheet corrects the pose).
+pairwise costs cannot tell; the walking line and the timing can. This labels standing (both feet
+down side by side), walking (alternation + step width) and one foot seen alone. Candidates far
+to the side of the camera (``max_camera_offset_m``) are ignored: low objects on the floor are
+not feet. A stance that begins where the stance before it rested, after it but too soon for a
+swing (``same_foot_m``, ``same_foot_s``), or while it rests but closer to it than
+``assoc_radius_m``, is that foot reported again (a track split when the pose jumps) and must
+have its side: left to the other costs, the double-support term or the camera's offset could
+label it the other foot (seen in simulation at the last step, where the end tag sheet corrects
+the pose).
 
 Final labels. The online labels use the world points of the observations, moved with the pose
 of their frame; a drifting pose makes their lateral offsets wrong. :meth:`StanceTracker.sides_at`
