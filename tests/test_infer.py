@@ -469,7 +469,44 @@ def test_segmented_stances_run_the_filter_again_with_the_foot_pixels(
     expected = np.einsum("kij,sj->ksi", obs.vio.T_WfromC[:, :3, :3], p_C)
     expected += obs.vio.T_WfromC[:, None, :3, 3]
     np.testing.assert_allclose(obs.foot_W, expected, atol=1e-9)
+    moved = np.linalg.norm(obs.vio.T_WfromC[:, :3, 3] - obs.vio.T_WfromC_filter[:, :3, 3], axis=1)
+    assert (moved > 0.02).all() == segmented  # the second run's (shifted) poses were kept
     if segmented:
         masks = calls[1]["foot_masks"]
         assert sorted(masks) == sorted(obs.t_ns.tolist())
         assert all(m is mask for m in masks.values())
+
+
+def test_a_failed_run_with_the_segmented_feet_keeps_the_first(
+    tiny_sim_session: Path, tiny_segmenter: Path, monkeypatch, caplog
+) -> None:
+    """A second run of the filter that diverges (or refuses the session) leaves the first
+    run's result, with a warning saying so."""
+    import gaitnet.pipeline.infer as infer
+    from gaitnet.config import load_config
+    from gaitnet.pipeline.foot_points import FrameFeet
+    from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
+    from gaitnet.vio.errors import FilterDivergedError
+    from gaitnet.vio.feet_segmented import FootMask
+
+    def masked_feet(frame, K, T_WfromC, *args, **kwargs) -> FrameFeet:
+        mask = FootMask((3, 4), np.ones((2, 2), bool))
+        return FrameFeet(np.full((2, 3), np.nan), np.zeros(frame.depth_m.shape, np.uint8), 0,
+                         None, mask)  # fmt: skip
+
+    real_run_vio = infer.run_vio
+    first: list = []
+
+    def diverging(*args, **kwargs):
+        if kwargs.get("foot_masks") is not None:
+            raise FilterDivergedError("position covariance exploded at frame 3")
+        first.append(real_run_vio(*args, **kwargs))
+        return first[-1]
+
+    monkeypatch.setattr(infer, "measure_feet", masked_feet)
+    monkeypatch.setattr(infer, "run_vio", diverging)
+    cfg = load_config(InferConfig, None, [])
+    with caplog.at_level(logging.WARNING, logger="gaitnet.pipeline.infer"):
+        obs = infer.observe(open_session(tiny_sim_session), cfg, OnnxSegmenter(tiny_segmenter))
+    assert obs.vio is first[0]
+    assert "segmented feet failed (position covariance exploded" in caplog.text

@@ -1,5 +1,6 @@
 """Stance-foot candidates (gaitnet.vio.feet, thesis (3.22)–(3.26)) and the stance tracker."""
 
+import logging
 from dataclasses import replace
 
 import numpy as np
@@ -524,9 +525,9 @@ def _sides(frames: list, truth: list, params: StanceParams | None = None) -> lis
 
 
 def test_a_missed_stance_on_a_drifting_walk_keeps_the_sides() -> None:
-    """Stances 3 and 4 missed on a walk drifting 4 cm per metre: the stances either side of
-    each gap are a stride apart, 2.5 cm apart sideways along the heading, and whether they are
-    one foot or two is told by the walking line (the camera's mean path), not the heading."""
+    """Stance 3, or 4, missed on a walk drifting 4 cm per metre either way: the stances either
+    side of the gap are a stride apart, 2.5 cm apart sideways along the heading, and keep
+    their sides."""
     frames, truth = _drifting_walk(drift_per_m=0.04, missed=(3,))
     expected = [side for side, _ in truth]
     expected[3] = "-"
@@ -557,6 +558,7 @@ def test_a_camera_off_the_body_middle_and_its_sway_keep_the_sides() -> None:
         stances = trk.finish()
         d = trk._line_offsets(stances, trk._path_t, trk._path_xy)
         inner = [s for s in stances if 0.5 < s.t_first < 3.5]  # a window either side
+        assert len(inner) >= 4
         for st in inner:
             sign = 1.0 if st.xy[1] < 0 else -1.0  # right of the line: positive
             assert sign * d[st.id] == pytest.approx(offset, abs=0.015 if window else 0.003)
@@ -608,6 +610,76 @@ def test_segmented_candidates_find_only_feet_the_depth_does_not() -> None:
     assert a.n_obs == 6
     assert b.t_first == pytest.approx(4 / FPS) and b.t_last == pytest.approx(15 / FPS)
     assert np.allclose(b.xy, B)
+
+
+@pytest.mark.parametrize("offset", [0.05, 0.07])
+def test_a_foot_seen_in_depth_and_in_its_pixels_by_turns_is_one_stance(offset: float) -> None:
+    """Depth finds a resting foot in every other frame, its pixels (in the stereo shadow) in
+    the others, their point ``offset`` ahead (the toe cap's height along the ray): one stance,
+    on its side, not a second one that the double-support cost would give the other side
+    (``segmented_radius_m``; with a radius of 0 the phantom appears)."""
+    heading, cam = np.array([1.0, 0.0]), np.array([0.5, 0.0])
+    R = np.array([1.0, -0.08])
+
+    def run(params: StanceParams | None = None) -> list:
+        trk = StanceTracker(params)
+        for i in range(15):
+            seg = i % 2 == 1 and i > 3
+            p = R + [offset, 0.0] if seg else R
+            trk.update(i / FPS, [p], heading_W=heading, p_CinW=cam, weak=[seg], segmented=[seg])
+        stances = trk.finish()
+        return sorted(trk.sides_at({s.id: s.xy for s in stances}).values())
+
+    assert run() == ["right"]
+    assert run(StanceParams(segmented_radius_m=0.0)) == ["left", "right"]
+
+
+def test_the_walking_line_labels_the_stances_of_a_real_drifting_walk() -> None:
+    """The stances the filter found on CMU walking_01 (simulated, seed 1) and the camera's
+    path, which drifts 2 cm a metre to the right: standing, the left foot's one stance found
+    between two missed right ones, the left foot's last stance found twice (the pose moved
+    6 cm while it rested, so its track split; the final positions put the two 1.4 cm apart)
+    and the right foot joining it. Offsets along the heading labelled the left foot's
+    second sighting right (the tracker before the walking line: left, right, left, right,
+    left, right); against the walking line every stance has its side."""
+    heading = np.array([1.0, 0.0])
+    stances = [  # (x, y as the filter saw them, first, last, final x)
+        (-0.002, 0.083, 0.0, 1.63, -0.002),
+        (0.007, -0.076, 0.0, 1.57, 0.007),
+        (1.472, 0.072, 2.77, 2.87, 1.472),
+        (2.968, 0.016, 3.87, 4.03, 2.968),
+        (3.024, 0.029, 4.47, 6.07, 2.954),
+        (3.026, -0.129, 4.53, 6.07, 2.956),
+    ]
+    trk = StanceTracker()
+    for i in range(int(6.07 * FPS) + 1):
+        t = i / FPS
+        x = float(np.clip((t - 1.8) / 3.0, 0.0, 1.0)) * 2.8 + 0.17  # 0.93 m/s, then standing
+        cam = np.array([x, -0.02 * x])
+        cands = [np.array([x_, y_]) for x_, y_, t0, t1, _ in stances if t0 <= t <= t1]
+        trk.update(t, cands, heading_W=heading, p_CinW=cam)
+    found = sorted(trk.finish(), key=lambda s: (s.t_first, s.xy[1] < 0))
+    assert len(found) == len(stances)
+    final = {s.id: np.array([r[4], r[1]]) for s, r in zip(found, stances, strict=True)}
+    sides = trk.sides_at(final)
+    assert [sides[s.id] for s in found] == ["left", "right", "left", "left", "left", "right"]
+
+
+def test_a_camera_path_on_another_clock_is_said(caplog) -> None:
+    frames, truth = _walk()
+    trk = StanceTracker()
+    for t, cands, heading, cam in frames:
+        trk.update(t, cands, heading_W=heading, p_CinW=cam)
+    stances = trk.finish()
+    path_t = np.array([f[0] for f in frames]) + 1.7e9  # seconds since 1970
+    path_xy = np.array([f[3] for f in frames])
+    with caplog.at_level(logging.WARNING, logger="gaitnet.vio.stance_tracker"):
+        trk.sides_at({s.id: s.xy for s in stances}, (path_t, path_xy))
+    assert "misses the time of every stance" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="gaitnet.vio.stance_tracker"):
+        trk.sides_at({s.id: s.xy for s in stances}, (path_t - 1.7e9, path_xy))
+    assert caplog.text == ""
 
 
 @pytest.mark.parametrize("fps", [15.0, 30.0, 60.0])

@@ -64,6 +64,7 @@ from gaitnet.pipeline.swing_fill import swing_fill
 from gaitnet.segmentation.midline import MidlineEstimate
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
 from gaitnet.segmentation.postprocess import FootKeypointParams
+from gaitnet.vio.errors import FilterDivergedError
 from gaitnet.vio.feet_segmented import FootMask
 from gaitnet.vio.result import VioResult
 from gaitnet.vio.run import run_vio
@@ -184,7 +185,8 @@ def observe(
 
     ``timings_s``: ``filter`` (wall seconds of the filter and smoother, the segmentation
     running beside it), ``segmenter_wait`` (wall seconds spent on the last frames after the
-    filter), ``segmenter_cpu`` (CPU seconds of the segmentation threads, summed).
+    filter), ``segmenter_cpu`` (CPU seconds of the segmentation threads, summed),
+    ``filter_segmented`` (wall seconds of the second run, when there is one).
     """
     timings: dict[str, float] = {"segmenter_cpu": 0.0}
     masks: dict[int, FootMask] = {}
@@ -259,21 +261,38 @@ def observe(
         raise RuntimeError(f"segmented {len(feet_f)} frames, the filter processed {n}")
     if masks:
         t0 = time.perf_counter()
-        again = run_vio(session, cfg.vio, progress=bar("filter, segmented feet"), foot_masks=masks)
+        vio = _run_with_masks(session, cfg, vio, masks, bar("filter, segmented feet"))
         timings["filter_segmented"] = time.perf_counter() - t0
-        if np.array_equal(again.t_s, vio.t_s):
-            vio = again
-        else:  # never seen: both runs refuse the same frames (the feet change no pose check)
-            log.warning(
-                "the filter's run with the segmented feet processed other frames than the "
-                "first (%d against %d); the first run is kept",
-                len(again.t_s), n,
-            )  # fmt: skip
     T_f = np.array(T_filter)
     T_move = vio.T_WfromC @ np.linalg.inv(T_f)  # filter pose → smoothed pose, per frame
     measured = np.einsum("kij,ksj->ksi", T_move[:, :3, :3], np.array(feet_f))
     measured += T_move[:, None, :3, 3]
     return Observations(vio, np.array(frame_ns, np.int64), measured, str(segmenter.path), timings)
+
+
+def _run_with_masks(
+    session: SessionSource,
+    cfg: InferConfig,
+    first: VioResult,
+    masks: dict[int, FootMask],
+    progress: Progress | None,
+) -> VioResult:
+    """The filter's run handed the segmenter's foot pixels ``masks``
+    (``pipeline.segmented_stances``), or ``first`` with a warning when that run fails or
+    processes other frames."""
+    try:
+        again = run_vio(session, cfg.vio, progress=progress, foot_masks=masks)
+    except (FilterDivergedError, SessionError) as exc:
+        log.warning("the filter's run with the segmented feet failed (%s); the first is kept", exc)
+        return first
+    if not np.array_equal(again.t_s, first.t_s):  # both refuse the same frames: never seen
+        log.warning(
+            "the filter's run with the segmented feet processed other frames than the first "
+            "(%d against %d); the first is kept",
+            len(again.t_s), len(first.t_s),
+        )  # fmt: skip
+        return first
+    return again
 
 
 def run_infer(

@@ -140,7 +140,8 @@ def _candidate(
     if not params.min_area_inside_m2 <= area <= params.max_area_m2:
         return None
     q2 = np.stack([Q @ fwd, Q @ side], axis=1)
-    evals, evecs = np.linalg.eigh(np.cov((q2 - q2.mean(axis=0)).T))
+    cov = np.cov((q2 - q2.mean(axis=0)).T) if len(q2) > 2 else np.eye(2) * 1e-6
+    evals, evecs = np.linalg.eigh(cov)
     length = 4.0 * float(np.sqrt(max(evals[1], 0.0)))
     width = 4.0 * float(np.sqrt(max(evals[0], 0.0)))
     if length > params.max_length_m or width > params.max_width_m:

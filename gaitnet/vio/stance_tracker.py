@@ -131,6 +131,11 @@ class StanceParams:
     same time less than ``assoc_radius_m`` apart (one foot found twice). 0: neither rule."""
     same_foot_s: float = 0.2
     """See ``same_foot_m`` [s]: a foot lifted and set down elsewhere swings for 0.35–0.45 s."""
+    segmented_radius_m: float = 0.15
+    """A candidate from the segmenter's foot pixels within this distance [m] of a stance
+    confirmed at a depth candidate (open, or closed less than ``reopen_s`` ago) is that foot
+    and is ignored: the segmented point of a shoe lies 5–8 cm from its depth point (the toe
+    cap's height seen along the ray), beyond ``assoc_radius_m``."""
     step_timing_cost: float = 1.0
     """Cost [nats] against two consecutive stances that begin one step time apart (the median
     gap between consecutive starts of 0.3–1.0 s) having one side, and against two that begin
@@ -150,6 +155,7 @@ class StanceParams:
         for name in ("assoc_radius_m", "side_sigma_m", "same_side_sigma_m", "line_sigma_m"):
             check_positive(name, getattr(self, name), " m")
         check_positive("max_camera_offset_m", self.max_camera_offset_m, " m")
+        check_range("segmented_radius_m", self.segmented_radius_m, 0.0, 10.0, " m")
         check_range("step_timing_cost", self.step_timing_cost, 0.0, 100.0)
         for name in (
             "confirm_s",
@@ -264,7 +270,7 @@ class StanceTracker:
         one when all were weak; ``segmented``: per candidate, True for one found in the
         segmenter's foot pixels where depth has none (:mod:`gaitnet.vio.feet_segmented`): it
         never joins a stance confirmed at a depth candidate, and is ignored within
-        ``assoc_radius_m`` of one seen less than ``reopen_s`` ago (that foot is found; its
+        ``segmented_radius_m`` of one seen less than ``reopen_s`` ago (that foot is found; its
         segmented sightings would only move its start, end and point); it may confirm, and
         then go on observing, a track that depth saw too briefly (a landing shoe seen for two
         frames, then hidden).
@@ -275,20 +281,10 @@ class StanceTracker:
             h = np.asarray(heading_W, dtype=np.float64)[:2]
             if np.linalg.norm(h) > 1e-6:
                 self._heading = h / np.linalg.norm(h)
-        cam = None if p_CinW is None else np.asarray(p_CinW, dtype=np.float64)[:2]
-        if cam is not None:
-            self._path_t.append(float(t_s))
-            self._path_xy.append(cam)
         xy = [np.asarray(c, dtype=np.float64)[:2] for c in candidates_xy]
         out: list[StanceAssignment | None] = [None] * len(xy)
-        right = np.array([self._heading[1], -self._heading[0]])
-        ignored = set()
-        if cam is not None:
-            ignored = {
-                i for i, p in enumerate(xy) if abs((p - cam) @ right) > P.max_camera_offset_m
-            }
         seg = [segmented is not None and bool(segmented[i]) for i in range(len(xy))]
-        ignored |= {i for i, p in enumerate(xy) if seg[i] and self._near_depth_stance(t_s, p)}
+        ignored = self._ignored(t_s, xy, p_CinW, seg)
         self._close_stale(t_s)
         # greedy nearest-first association with open tracks
         pairs = sorted(
@@ -360,6 +356,22 @@ class StanceTracker:
         st.t_last = tr.t_last
         st.obs = list(tr.obs)
 
+    def _ignored(
+        self, t_s: float, xy: list[np.ndarray], p_CinW: np.ndarray | None, seg: list[bool]
+    ) -> set[int]:
+        """The candidates :meth:`update` ignores: too far to the side of the camera
+        (``max_camera_offset_m``; the camera's position is also recorded for the walking
+        line), or segmented near a stance found in depth (:meth:`_near_depth_stance`)."""
+        out = set()
+        if p_CinW is not None:
+            cam = np.asarray(p_CinW, dtype=np.float64)[:2]
+            self._path_t.append(float(t_s))
+            self._path_xy.append(cam)
+            right = np.array([self._heading[1], -self._heading[0]])
+            limit = self.params.max_camera_offset_m
+            out = {i for i, p in enumerate(xy) if abs((p - cam) @ right) > limit}
+        return out | {i for i, p in enumerate(xy) if seg[i] and self._near_depth_stance(t_s, p)}
+
     def _close_stale(self, t_s: float) -> None:
         """Close the tracks not observed for ``max_gap_s``."""
         for tr in list(self._open):
@@ -370,13 +382,13 @@ class StanceTracker:
                     self._closed.append(tr)
 
     def _near_depth_stance(self, t_s: float, p: np.ndarray) -> bool:
-        """Whether ``p`` lies within ``assoc_radius_m`` of a stance confirmed at a depth
+        """Whether ``p`` lies within ``segmented_radius_m`` of a stance confirmed at a depth
         candidate, open or closed less than ``reopen_s`` ago."""
         P = self.params
         return any(
             tr.by_depth
             and t_s - tr.t_last <= P.reopen_s
-            and np.linalg.norm(p - tr.xy) <= P.assoc_radius_m
+            and np.linalg.norm(p - tr.xy) <= P.segmented_radius_m
             for tr in (*self._open, *self._closed)
         )
 
@@ -432,8 +444,14 @@ class StanceTracker:
         ]
         if camera_path is None:
             return self._labels(chosen, self._path_t, self._path_xy)
-        t, p = camera_path
-        return self._labels(chosen, np.asarray(t, dtype=np.float64), np.asarray(p)[:, :2])
+        t = np.asarray(camera_path[0], dtype=np.float64)
+        W = self.params.line_window_s
+        if chosen and not any(((t >= s.t_first - W) & (t <= s.t_last + W)).any() for s in chosen):
+            log.warning(
+                "the camera path misses the time of every stance (another clock?): the sides "
+                "come from the offsets along the heading alone"
+            )
+        return self._labels(chosen, t, np.asarray(camera_path[1])[:, :2])
 
     def _label_sides(self) -> None:
         labels = self._labels(self._stances, self._path_t, self._path_xy)
