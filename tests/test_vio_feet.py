@@ -556,7 +556,8 @@ def test_a_camera_off_the_body_middle_and_its_sway_keep_the_sides() -> None:
         for t, cands, heading, cam in frames:
             trk.update(t, cands, heading_W=heading, p_CinW=cam)
         stances = trk.finish()
-        d = trk._line_offsets(stances, trk._path_t, trk._path_xy)
+        path = trk._recorded_path()
+        d = trk._line_offsets(stances, path[:, 0], path[:, 1:])
         inner = [s for s in stances if 0.5 < s.t_first < 3.5]  # a window either side
         assert len(inner) >= 4
         for st in inner:

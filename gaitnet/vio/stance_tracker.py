@@ -20,28 +20,28 @@ closed stance observed again within ``reopen_s`` at the same point (the foot was
 other leg) is re-opened under the same id instead of starting a duplicate.
 
 Left/right. Labels come from a two-state Viterbi over all stances in order of their start,
-re-run whenever a stance is confirmed (so earlier labels may be corrected; :meth:`finish`
-returns the final ones). Pairwise costs between consecutive stances ``a`` → ``b``, with ``d``
-the lateral offset of ``b`` from ``a`` (positive to the right of the walking direction; the
-difference of their offsets ``d_L`` from the walking line below, which follows a curving or
-drifting path between stances a stride apart): different sides cost ``softplus(−s_b d / σ)``
-(``s = +1`` right, ``−1`` left: a right foot lies to the right of the left one), the same side
-costs ``same_side_cost + ½ (d / σ_same)²`` (normally feet alternate; a missed stance breaks
-that, but then both lie on one line), and two stances down at the same time (double support,
-standing) must differ (a large cost). Timing: two consecutive stances that begin about one step
-time apart (the walk's median) cost ``step_timing_cost`` more on one side, two step times apart
-(a stance missed between) on two. A unary term ``softplus(−s (d_L − b) / σ_L)`` uses the offset
-``d_L`` from the walking line: the mean camera position over the stance and ``line_window_s``
-either side of it (a step before and after, so the pelvis' sway towards the stance foot
-cancels), less ``b``, the camera's own offset from the line between the feet (a mount off the
-belly's middle): the midpoint of the mean offsets of the stances labelled left and right,
-estimated from a first labelling with ``b = 0`` (when both sides are present). Where a stance is
-missed, the two stances on either side of the gap lie on one line whatever their sides and the
-pairwise costs cannot tell; the walking line and the timing can. This labels standing (both feet
-down side by side), walking (alternation + step width) and one foot seen alone. Candidates far
-to the side of the camera (``max_camera_offset_m``) are ignored: low objects on the floor are
-not feet. A stance that begins where the stance before it rested, after it but too soon for a
-swing (``same_foot_m``, ``same_foot_s``), or while it rests but closer to it than
+re-run over the latest :data:`ONLINE_STANCES` whenever a stance is confirmed (so recent labels
+may be corrected; :meth:`finish` returns the final ones). Pairwise costs between consecutive
+stances ``a`` → ``b``, with ``d`` the lateral offset of ``b`` from ``a`` (positive to the right
+of the walking direction; the difference of their offsets ``d_L`` from the walking line below,
+which follows a curving or drifting path between stances a stride apart): different sides cost
+``softplus(−s_b d / σ)`` (``s = +1`` right, ``−1`` left: a right foot lies to the right of the
+left one), the same side costs ``same_side_cost + ½ (d / σ_same)²`` (normally feet alternate; a
+missed stance breaks that, but then both lie on one line), and two stances down at the same time
+(double support, standing) must differ (a large cost). Timing: two consecutive stances that
+begin about one step time apart (the walk's median) cost ``step_timing_cost`` more on one side,
+two step times apart (a stance missed between) on two. A unary term ``softplus(−s (d_L − b) /
+σ_L)`` uses the offset ``d_L`` from the walking line: the mean camera position over the stance
+and ``line_window_s`` either side of it (a step before and after, so the pelvis' sway towards
+the stance foot cancels), less ``b``, the camera's own offset from the line between the feet (a
+mount off the belly's middle): the midpoint of the mean offsets of the stances labelled left and
+right, estimated from a first labelling with ``b = 0`` (when both sides are present). Where a
+stance is missed, the two stances on either side of the gap lie on one line whatever their sides
+and the pairwise costs cannot tell; the walking line and the timing can. This labels standing
+(both feet down side by side), walking (alternation + step width) and one foot seen alone.
+Candidates far to the side of the camera (``max_camera_offset_m``) are ignored: low objects on
+the floor are not feet. A stance that begins where the stance before it rested, after it but too
+soon for a swing (``same_foot_m``, ``same_foot_s``), or while it rests but closer to it than
 ``assoc_radius_m``, is that foot reported again (a track split when the pose jumps) and must
 have its side: left to the other costs, the double-support term or the camera's offset could
 label it the other foot (seen in simulation at the last step, where the end tag sheet corrects
@@ -67,6 +67,10 @@ from gaitnet.checks import check_positive, check_range
 log = logging.getLogger(__name__)
 
 __all__ = ["Stance", "StanceAssignment", "StanceParams", "StanceTracker"]
+
+ONLINE_STANCES = 24
+"""Stances :meth:`StanceTracker.update` labels again at each confirmation (about 12 strides;
+:meth:`StanceTracker.finish` and :meth:`StanceTracker.sides_at` label all of them)."""
 
 
 @dataclass(frozen=True)
@@ -243,8 +247,10 @@ class StanceTracker:
         self._closed: list[_Track] = []
         self._stances: list[Stance] = []
         self._heading = np.array([1.0, 0.0])
-        self._path_t: list[float] = []  # the camera's path as update() saw it
-        self._path_xy: list[np.ndarray] = []
+        self._path: list[
+            tuple[float, float, float]
+        ] = []  # the camera's (t, x, y) as update() saw it
+        self._path_array = np.empty((0, 3))  # the same, built on demand
 
     @property
     def stances(self) -> list[Stance]:
@@ -320,7 +326,7 @@ class StanceTracker:
             out[i] = self._reopen_or_start(t_s, p, weak is not None and bool(weak[i]), seg[i])
             relabel = relabel or (out[i] is not None and out[i][0] == "new")  # type: ignore[index]
         if relabel:
-            self._label_sides()
+            self._label_sides(ONLINE_STANCES)
         return [None if o is None else _assignment(*o) for o in out]  # type: ignore[misc]
 
     def finish(self) -> list[Stance]:
@@ -365,8 +371,7 @@ class StanceTracker:
         out = set()
         if p_CinW is not None:
             cam = np.asarray(p_CinW, dtype=np.float64)[:2]
-            self._path_t.append(float(t_s))
-            self._path_xy.append(cam)
+            self._path.append((float(t_s), float(cam[0]), float(cam[1])))
             right = np.array([self._heading[1], -self._heading[0]])
             limit = self.params.max_camera_offset_m
             out = {i for i, p in enumerate(xy) if abs((p - cam) @ right) > limit}
@@ -443,7 +448,8 @@ class StanceTracker:
             if st.id in xy
         ]
         if camera_path is None:
-            return self._labels(chosen, self._path_t, self._path_xy)
+            path = self._recorded_path()
+            return self._labels(chosen, path[:, 0], path[:, 1:])
         t = np.asarray(camera_path[0], dtype=np.float64)
         W = self.params.line_window_s
         if chosen and not any(((t >= s.t_first - W) & (t <= s.t_last + W)).any() for s in chosen):
@@ -453,32 +459,48 @@ class StanceTracker:
             )
         return self._labels(chosen, t, np.asarray(camera_path[1])[:, :2])
 
-    def _label_sides(self) -> None:
-        labels = self._labels(self._stances, self._path_t, self._path_xy)
-        for st in self._stances:
+    def _label_sides(self, recent: int | None = None) -> None:
+        """Label the stances (all, or the ``recent`` last confirmed: the online labels, which
+        only the latest stances need, at a cost that does not grow with the walk)."""
+        path = self._recorded_path()
+        stances = self._stances if recent is None else self._stances[-recent:]
+        labels = self._labels(stances, path[:, 0], path[:, 1:])
+        for st in stances:
             st.side = labels[st.id]
 
+    def _recorded_path(self) -> np.ndarray:
+        """The camera's path update() was given, (N, 3) ``t, x, y`` (grown, not rebuilt)."""
+        n = len(self._path_array)
+        if n < len(self._path):
+            self._path_array = np.concatenate([self._path_array, np.array(self._path[n:])])
+        return self._path_array
+
     def _line_offsets(
-        self, stances: list[Stance], path_t: Sequence[float] | np.ndarray, path_xy: Sequence
+        self, stances: list[Stance], path_t: np.ndarray, path_xy: np.ndarray
     ) -> dict[int, float | None]:
         """Each stance's offset to the right of the walking line (module docstring) [m]: from
         the mean camera position over its observations ± ``line_window_s``; None where the path
-        has no point in that time (no camera positions given)."""
+        has no point in that time (no camera positions given). Window means from cumulative
+        sums: the labelling runs at every confirmation."""
         t = np.asarray(path_t, dtype=np.float64)
         xy = np.asarray(path_xy, dtype=np.float64).reshape(-1, 2)
+        order = np.argsort(t, kind="stable")
+        t, xy = t[order], xy[order]
+        csum = np.concatenate([np.zeros((1, 2)), np.cumsum(xy, axis=0)])
         W = self.params.line_window_s
-        out = {}
+        out: dict[int, float | None] = {}
         for st in stances:
-            near = (t >= st.t_first - W) & (t <= st.t_last + W)
-            if not near.any():
+            i0 = int(np.searchsorted(t, st.t_first - W, side="left"))
+            i1 = int(np.searchsorted(t, st.t_last + W, side="right"))
+            if i1 <= i0:
                 out[st.id] = None
                 continue
             right = np.array([st.heading[1], -st.heading[0]])
-            out[st.id] = float((st.xy - xy[near].mean(axis=0)) @ right)
+            out[st.id] = float((st.xy - (csum[i1] - csum[i0]) / (i1 - i0)) @ right)
         return out
 
     def _labels(
-        self, stances: list[Stance], path_t: Sequence[float] | np.ndarray, path_xy: Sequence
+        self, stances: list[Stance], path_t: np.ndarray, path_xy: np.ndarray
     ) -> dict[int, str]:
         """The sides of ``stances``: labelled with the camera's offset ``b`` from the line
         between the feet taken as 0, then, when both sides are present, again with ``b`` the
