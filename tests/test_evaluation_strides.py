@@ -118,3 +118,25 @@ def test_evaluate_reports_the_contract_stride_keys(tmp_path: Path) -> None:
     (session / "groundtruth" / "strides.csv").unlink()
     with pytest.raises(SessionError, match="strides file not found"):
         evaluate_result(result, session)
+
+
+def test_evaluate_prints_how_many_true_strides_the_rmse_covers(tmp_path: Path, capsys) -> None:
+    """One right stride missed and one found that matches none: the printed summary says
+    "right 2 of 3" next to the RMSE over the two."""
+    from gaitnet.cli import main
+
+    session = tmp_path / "session"
+    (session / "groundtruth").mkdir(parents=True)
+    ref = _reference(3)
+    _write_gt(session / "groundtruth" / "strides.csv", ref)
+    est = [r for r in ref if not (r[0] == "right" and r is ref[-1])]
+    est.append(("right", 50.0, 51.0, 1.3))  # a stride at times the walk has none
+    result = tmp_path / "result"
+    result.mkdir()
+    _write_est(result / "strides.csv", est)
+    assert main(["evaluate", str(result), "--session", str(session)]) == 0
+    out = capsys.readouterr().out
+    line = next(ln for ln in out.splitlines() if ln.startswith("n_strides"))
+    left = sum(r[0] == "left" for r in ref)
+    assert f"left {left} of {left}" in line and "right 2 of 3" in line
+    assert "found but unmatched: left 0, right 1" in line

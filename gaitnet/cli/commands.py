@@ -135,7 +135,9 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
     report = evaluate_result(args.result_dir, args.session)
     for key, value in sorted(report.metrics.items()):
-        if isinstance(value, dict):
+        if key == "n_strides":  # never a stride RMSE without how many strides it covers
+            print(f"{key:16s} {_strides_matched(value, report.counts)}")
+        elif isinstance(value, dict):
             parts = ", ".join(
                 f"{k} {v:.4f}" if isinstance(v, float) else f"{k} {v}" for k, v in value.items()
             )
@@ -146,6 +148,17 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         write_report(report, args.json)
         print(f"wrote {args.json}")
     return 0
+
+
+def _strides_matched(matched: dict[str, int], counts: dict[str, int]) -> str:
+    """``left 2 of 3, right 3 of 3 true strides matched; found but unmatched: left 0, right
+    1`` from the evaluation's ``n_strides`` and its unmatched-stride counts."""
+    true = ", ".join(
+        f"{s} {n} of {n + counts.get(f'strides_unmatched_groundtruth_{s}', 0)}"
+        for s, n in matched.items()
+    )
+    found = ", ".join(f"{s} {counts.get(f'strides_unmatched_estimate_{s}', 0)}" for s in matched)
+    return f"{true} true strides matched; found but unmatched: {found}"
 
 
 def _cmd_vio(args: argparse.Namespace) -> int:
