@@ -5,7 +5,8 @@ Each check raises ``ValueError`` with a one-line message naming the key;
 :class:`~gaitnet.errors.ConfigError` naming the file and the section (session readers into a
 :class:`~gaitnet.errors.SessionError`). Every check refuses NaN, infinities and bools, and
 returns the value as a plain Python ``float`` / ``int`` (numpy scalars included), so a type can
-store what it checked. This module imports nothing of gaitnet (layer 1, docs/design.md).
+store what it checked; real numbers beyond :data:`MAX_MAGNITUDE` are refused too. This module
+imports nothing of gaitnet (layer 1, docs/design.md).
 """
 
 from __future__ import annotations
@@ -15,6 +16,11 @@ import numbers
 from collections.abc import Iterable
 from typing import Any
 
+MAX_MAGNITUDE = 1e30
+"""Largest magnitude any checked number may have: beyond every physical value of a config or
+a file, and small enough that squares and products of a few of them stay finite (a noise
+density of 1e308 squared raised ``OverflowError`` deep inside the filter)."""
+
 
 def _real(name: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
@@ -22,6 +28,8 @@ def _real(name: str, value: Any) -> float:
     number = float(value)
     if not math.isfinite(number):
         raise ValueError(f"{name} must be a finite number, got {value!r}")
+    if abs(number) > MAX_MAGNITUDE:
+        raise ValueError(f"{name} must be a number of magnitude at most 1e30, got {value!r}")
     return number
 
 

@@ -31,6 +31,17 @@ def test_bounds_are_inclusive_and_values_come_back_plain() -> None:
     assert check_positive("x", 1e-300) == 1e-300
 
 
+def test_numbers_too_large_to_compute_with_are_refused() -> None:
+    """1e308 is finite, but its square is not: a noise density or standard deviation that
+    large raised OverflowError inside the filter. Beyond 1e30 every check refuses it."""
+    for bad in (1e308, -1e31, np.float64(2e30)):
+        with pytest.raises(ValueError, match="^speed must be a number of magnitude at most 1e30"):
+            check_range("speed", bad)
+        with pytest.raises(ValueError, match="^speed must be a number of magnitude at most 1e30"):
+            check_positive("speed", abs(bad))
+    assert check_positive("speed", 1e30) == 1e30
+
+
 def test_integers() -> None:
     assert check_int_range("n", np.int64(3), 1, 5) == 3
     assert type(check_int_range("n", np.int64(3), 1, 5)) is int

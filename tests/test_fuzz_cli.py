@@ -157,6 +157,11 @@ CASES: list[tuple[str, list[str], str]] = [
         ["vio", "{session}", "--out", "{tmp}/out", "filter.foot_std_m=-1"],
         "foot_std_m",
     ),
+    (
+        "vio-value-too-large",  # finite, but its square overflowed inside the filter
+        ["vio", "{session}", "--out", "{tmp}/out", "imu.scale=1e308"],
+        "scale must be a number of magnitude at most 1e30",
+    ),
     ("segment-missing-args", ["segment"], "gaitnet segment: error: the following arguments"),
     ("segment-missing-out", ["segment", "{session}"], "required: --out"),
     ("segment-session-missing", ["segment", "{missing}", "--out", "{tmp}/out"], "{missing}"),

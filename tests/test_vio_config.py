@@ -26,6 +26,8 @@ def test_the_shipped_default_file_is_the_built_in_default() -> None:
         ("filter.gravity_mps2=3", "gravity_mps2"),
         ("gait.max_stride_time_s=-1", "max_stride_time_s"),
         ("imu.scale=0", "scale"),
+        ("filter.foot_std_m=1e308", "foot_std_m"),  # finite, but its square overflowed
+        ("imu.scale=1e308", "scale"),
         ("filter.bogus=1", "filter.bogus"),
         ("filter.tag_recovery_frames=1", "tag_recovery_frames"),
         ("filter.tag_recovery_frames=-2", "tag_recovery_frames"),
