@@ -490,6 +490,39 @@ def bag_header_fields(path: Path) -> tuple[int, int, dict[bytes, bytes]]:
     return pos + 4, pos + 4 + header_len, fields
 
 
+@dataclass(frozen=True)
+class ChunkRecord:
+    """Where a CHUNK record of a bag file lies: the record's byte offset (what error messages
+    name), the offset of its header's 4-byte ``size`` value and of its (compressed) data."""
+
+    pos: int
+    size_at: int
+    data_at: int
+    data_len: int
+
+
+def chunk_records(path: Path) -> list[ChunkRecord]:
+    """The bag's CHUNK records in file order (a walk over its top-level records)."""
+    data = path.read_bytes()
+    pos = data.index(b"\n") + 1  # after "#ROSBAG V2.0\n"
+    chunks = []
+    while pos < len(data):
+        (header_len,) = struct.unpack_from("<I", data, pos)
+        header = data[pos + 4 : pos + 4 + header_len]
+        (data_len,) = struct.unpack_from("<I", data, pos + 4 + header_len)
+        fields, p = {}, 0
+        while p < header_len:
+            (n,) = struct.unpack_from("<I", header, p)
+            name, _, _ = header[p + 4 : p + 4 + n].partition(b"=")
+            fields[name] = pos + 4 + p + 4 + len(name) + 1  # where the value starts
+            p += 4 + n
+        if data[fields[b"op"]] == 5:  # CHUNK
+            data_at = pos + 8 + header_len
+            chunks.append(ChunkRecord(pos, fields[b"size"], data_at, data_len))
+        pos += 8 + header_len + data_len
+    return chunks
+
+
 def unindex_bag(path: Path) -> Path:
     """Make ``path`` look like a recording that was cut off: no index, index_pos = 0.
 

@@ -12,6 +12,7 @@ import torch
 from amassfactory import walking_like_clip, write_smplh_poses, write_smplx_stageii
 from scipy.spatial.transform import Rotation
 
+from gaitnet.errors import InputError
 from gaitnet.motion.amass import (
     REST_JOINTS_KEY,
     AmassError,
@@ -204,6 +205,15 @@ def test_prepare_walking_subset_and_windows(tmp_path: Path) -> None:
     assert batch["poses"].shape == (4, 20, 21)
     with pytest.raises(AmassError, match="no windows"):
         WalkingWindows(out, "test", n_past=20, n_future=20)
+
+    # A sub-dataset's own stride: KIT at stride 1 gives 61 − 19 + 30 − 19 windows, any case.
+    per_set = WalkingWindows(out, "train", stride=5, dataset_stride={"kit": 1})
+    assert len(per_set) == (61 - 19) + (30 - 19)
+    assert np.array_equal(per_set.index[:3, 1] - per_set.index[0, 1], [0, 1, 2])
+    with pytest.raises(InputError, match="sub-dataset 'cmu' in split 'train'"):
+        WalkingWindows(out, "train", dataset_stride={"CMU": 1})  # no training clip there
+    with pytest.raises(InputError, match="strides >= 1"):
+        WalkingWindows(out, "train", dataset_stride={"KIT": 0})
 
 
 def test_clip_list_selection(tmp_path: Path) -> None:

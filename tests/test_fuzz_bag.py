@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from bagfactory import FAULTS, unindex_bag, write_empty_bag, write_sdk_bag
+from bagfactory import FAULTS, chunk_records, unindex_bag, write_empty_bag, write_sdk_bag
 from oneline import assert_one_line_exit
 
 from gaitnet.cli import main
@@ -94,6 +94,36 @@ def test_messages_say_what_is_wrong(tmp_path, capsys):
         path = BROKEN[case](tmp_path / f"{case}.bag")
         rc = main(["check", str(path)])
         assert_one_line_exit(capsys, rc, str(path), fragment)
+
+
+CHUNK_DAMAGE = {
+    # (LZ4-compressed?, what is changed inside the chunk, what the message says)
+    "lz4_data": (True, "data", "does not decompress"),
+    "lz4_size": (True, "size", "decompresses to"),
+    "uncompressed_size": (False, "size", "holds"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CHUNK_DAMAGE))
+def test_a_damaged_chunk_is_named_by_its_offset(case, tmp_path, capsys):
+    """Bytes changed inside one chunk of the bag (its compressed data, or the uncompressed size
+    in its header): check and convert stop with one line naming the chunk's byte offset."""
+    compressed, part, fragment = CHUNK_DAMAGE[case]
+    path = write_sdk_bag(
+        tmp_path / f"{case}.bag", n_frames=4, compression=compressed, chunk_threshold=4096
+    ).path
+    chunk = chunk_records(path)[len(chunk_records(path)) // 2]
+    data = bytearray(path.read_bytes())
+    at = chunk.data_at if part == "data" else chunk.size_at  # the LZ4 frame's magic / size
+    data[at] ^= 0x01
+    path.write_bytes(bytes(data))
+    where = f"chunk at byte {chunk.pos} {fragment}"
+    rc = main(["check", str(path)])
+    assert_one_line_exit(capsys, rc, str(path), where)
+    out = tmp_path / "out"
+    rc = main(["convert", str(path), str(out)])
+    assert_one_line_exit(capsys, rc, str(path), where)
+    assert not out.exists()
 
 
 @pytest.mark.parametrize("case", sorted(VALID))

@@ -225,6 +225,22 @@ def test_broken_input_is_one_line(case: str, case_dirs, capsys, tmp_path: Path) 
     assert not out.exists()  # never a JSON (and so never a NaN in one) for broken input
 
 
+JOINT_TIMES = {
+    "all_equal": lambda t, p: np.full_like(t, t[0]),
+    "one_step_back": lambda t, p: t[[0, 2, 1, *range(3, len(t))]],
+}
+
+
+@pytest.mark.parametrize("times", sorted(JOINT_TIMES))
+def test_joint_times_that_do_not_increase_are_refused(times: str, case_dirs, capsys) -> None:
+    """Result joints all at one time (or out of order) would be matched and scored frame by
+    frame against the truth: refused, naming the result file."""
+    result, session = case_dirs
+    _joints(t_ns=JOINT_TIMES[times])(result, session)
+    rc = main(["evaluate", str(result), "--session", str(session)])
+    assert_one_line_exit(capsys, rc, f"{result / 'joints.npz'}: 't_ns' must be strictly increasing")
+
+
 @pytest.mark.parametrize("target", ["folder", "parent_is_file"])
 def test_json_target_that_cannot_be_written(target: str, case_dirs, capsys, tmp_path) -> None:
     result, session = case_dirs

@@ -84,6 +84,7 @@ BROKEN: dict[str, Callable[[Path], None]] = {
     "image_width_huge": _doc(lambda d: d.update(imageWidth=10**9)),
     "image_path_escapes": _doc(lambda d: d.update(imagePath="../../etc/passwd")),
     "image_path_not_text": _doc(lambda d: d.update(imagePath=7)),
+    "image_path_nul": _doc(lambda d: d.update(imagePath="frame.png\x00.jpg")),
     "image_size_mismatch": _image((81, 60)),
     "image_missing": _image(None),
     "image_not_an_image": lambda path: (
@@ -115,6 +116,7 @@ def test_messages_say_what_is_wrong(folder):
         "polygon_nan_point": "shapes[0]: point [nan, 4.0] is not a finite [x, y] pair",
         "image_size_mismatch": "image frame.png is 81×60 but the annotation says 80×60",
         "unknown_label": "shapes[0]: unknown label 'hand'",
+        "image_path_nul": "holds a NUL character",
     }
     for case, fragment in expected.items():
         path = folder / f"{case}.json"

@@ -175,6 +175,22 @@ def test_a_model_that_outputs_inf_is_refused(tmp_path: Path) -> None:
     assert_one_line_message(exc, str(path), "output 'poses' is not finite", error_type=InputError)
 
 
+def test_a_model_that_differs_from_its_sidecar_sha256_is_refused(tmp_path: Path) -> None:
+    """One byte of the model changed (its weights: onnxruntime would load it): the SHA-256 its
+    sidecar records no longer matches, and the file is refused before it is loaded."""
+    path = tmp_path / MODEL.name
+    path.write_bytes(MODEL.read_bytes())
+    sidecar = tmp_path / f"{MODEL.stem}.json"
+    sidecar.write_bytes(MODEL.with_suffix(".json").read_bytes())
+    OnnxPredictor(path)  # the intact copy with its sidecar loads
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0x01
+    path.write_bytes(bytes(data))
+    with pytest.raises(OnnxInputError) as exc:
+        OnnxPredictor(path)
+    assert_one_line_message(exc, str(path), str(sidecar), "SHA-256", error_type=InputError)
+
+
 @pytest.mark.parametrize("threads", [-1, 1.5, True, 10**6])
 def test_bad_thread_counts(threads) -> None:
     with pytest.raises(OnnxInputError) as exc:

@@ -108,6 +108,14 @@ def _symlink_out(name: str) -> Callable[[Path], Path]:
     return build
 
 
+def _symlink_loop(root: Path) -> Path:
+    """Frame 1 of ``color`` replaced by a link to itself."""
+    path = _frame("color", 1)(root)
+    path.unlink()
+    path.symlink_to(path.name)
+    return path
+
+
 def _remove(name: str) -> Callable[[Path], Path]:
     def build(root: Path) -> Path:
         path = root / name
@@ -145,6 +153,7 @@ BROKEN: dict[str, Callable[[Path], Path]] = {
     "T_CfromI_3x3": _yaml_edit(_set("T_CfromI", value=[[1, 0, 0], [0, 1, 0], [0, 0, 1]])),
     "board_rows_zero": _yaml_edit(_set("apriltag_boards", 0, "rows", value=0)),
     "board_pose_nan": _yaml_edit(_set("apriltag_boards", 0, "T_WfromBoard", 1, 3, value=NAN)),
+    "board_family_unsupported": _yaml_edit(_set("apriltag_boards", 0, "family", value="tag25h9")),
     "unknown_key": _yaml_edit(_set("colour", value={})),
     "missing_key": _yaml_edit(lambda data: data.pop("depth")),
     "wrong_type": _yaml_edit(_set("depth_aligned_to_color", value="yes")),
@@ -179,6 +188,7 @@ BROKEN: dict[str, Callable[[Path], Path]] = {
     "symlink_imu_outside": _symlink_out("imu.csv"),
     "symlink_yaml_outside": _symlink_out("session.yaml"),
     "symlink_frame_outside": _symlink_out("color/2"),
+    "symlink_frame_loop": _symlink_loop,
 }
 
 
@@ -206,6 +216,9 @@ def test_messages_name_the_key_and_the_problem(tmp_path, capsys):
         "imu_timestamp_beyond_int64": "line 5: timestamp '9223372036854775808' is not integer ns",
         "imu_not_utf8": "not UTF-8 text",
         "symlink_imu_outside": "symbolic link to",
+        "symlink_frame_loop": "symbolic link loop",
+        "board_family_unsupported": "apriltag_boards[0]: family 'tag25h9' cannot be decoded "
+        "(supported: tag36h11)",
     }
     for case, fragment in expected.items():
         root = make_tiny_session(tmp_path / case)

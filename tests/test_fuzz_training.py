@@ -134,6 +134,9 @@ BAD_OPTIONS = [
     (["loss.w_mpjpe=0", "loss.w_mae=0"], "both be zero"),
     (["data.num_workers=-1"], "num_workers"),
     (["data.train_stride=0"], "train_stride"),
+    (["data.dataset_train_stride={FuzzTrain: 0}"], "dataset_train_stride.FuzzTrain"),
+    (["data.dataset_train_stride=[1]"], "dataset_train_stride"),
+    (["data.dataset_train_stride={NoSuchSet: 1}"], "sub-dataset 'nosuchset'"),
     (["eval.split=train2"], "eval.split"),
     (["data.split.val=[NoSuchSet]"], "no windows"),  # the validation split is empty
     (["no_equals_sign"], "key=value"),

@@ -12,6 +12,8 @@ import cv2
 import numpy as np
 import pytest
 import torch
+from oneline import assert_one_line_exit
+from sessionfactory import make_tiny_session
 
 from gaitnet.cli import main
 from gaitnet.io import open_session
@@ -183,6 +185,21 @@ def test_segment_errors_are_one_line(
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and message in err
     assert not (tmp_path / "o").exists()
+
+
+def test_segment_refuses_depth_not_aligned_to_colour(tmp_path: Path, capsys) -> None:
+    """``depth_aligned_to_color: false``: refused as gaitnet vio refuses it (the same check),
+    naming session.yaml; nothing is written."""
+    root = make_tiny_session(tmp_path / "session")
+    yaml_path = root / "session.yaml"
+    text = yaml_path.read_text()
+    yaml_path.write_text(
+        text.replace("depth_aligned_to_color: true", "depth_aligned_to_color: false")
+    )
+    for command, who in (("segment", "the segmenter"), ("vio", "the filter")):
+        rc = main([command, str(root), "--out", str(tmp_path / "o")])
+        assert_one_line_exit(capsys, rc, f"{yaml_path}: depth_aligned_to_color is false", who)
+        assert not (tmp_path / "o").exists()
 
 
 @pytest.mark.parametrize("arch", ["rgb", "hha", "fusion"])

@@ -11,6 +11,7 @@ from gaitnet.errors import ConfigError
 from gaitnet.geometry.camera import project
 from gaitnet.geometry.rotation import so3_exp, so3_log
 from gaitnet.io.types import (
+    APRILTAG_FAMILIES,
     AprilTagBoard,
     CameraIntrinsics,
     Frame,
@@ -144,6 +145,14 @@ def test_apriltag3_without_its_package_is_a_one_line_error(monkeypatch):
         detect_tags(img, AprilTagParams(detector="apriltag3"))
     assert "\n" not in str(info.value) and "tags.detector=aruco" in str(info.value)
     assert len(detect_tags(img, AprilTagParams(detector="aruco"))[0]) >= 30
+
+
+def test_sessions_accept_exactly_the_families_the_detectors_decode():
+    """A session's board families are checked where session.yaml is read (gaitnet check
+    refuses the others), against the families the filter's detectors know."""
+    assert set(APRILTAG_FAMILIES) == set(tag_detectors._FAMILIES)
+    with pytest.raises(ValueError, match="family 'tag25h9' cannot be decoded"):
+        AprilTagBoard("start", "tag25h9", 7, 5, 0.04, 0.012, 0, np.eye(4))
 
 
 @pytest.mark.parametrize("detector", DETECTORS)

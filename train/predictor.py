@@ -273,7 +273,9 @@ def main(args: argparse.Namespace) -> int:
     prepared = prepared_with_split(load_prepared(cfg.data.prepared), cfg.data.split)
     prepared = augmented(prepared, cfg.augment)
     skeletons = clip_skeletons(prepared, cfg.loss)
-    train_ds = build_windows(cfg, "train", cfg.data.train_stride, prepared, skeletons)
+    train_ds = build_windows(
+        cfg, "train", cfg.data.train_stride, prepared, skeletons, cfg.data.dataset_train_stride
+    )
     val_ds = build_windows(cfg, "val", cfg.data.eval_stride, prepared, skeletons)
     train_sampler = DistributedSampler(
         train_ds, info.world_size, info.rank, shuffle=True, seed=cfg.train.seed, drop_last=True
@@ -319,9 +321,10 @@ def main(args: argparse.Namespace) -> int:
     setup_logging(info.rank, run_dir)
     logger.info("run %s on %s (%d process(es), %d threads)", run_dir, device,
                 info.world_size, torch.get_num_threads())  # fmt: skip
-    logger.info("windows: %d train (stride %d), %d val (stride %d) from %s",
-                len(train_ds), cfg.data.train_stride, len(val_ds), cfg.data.eval_stride,
-                cfg.data.prepared)  # fmt: skip
+    logger.info("windows: %d train (stride %d%s), %d val (stride %d) from %s",
+                len(train_ds), cfg.data.train_stride,
+                "".join(f", {k} {v}" for k, v in cfg.data.dataset_train_stride.items()),
+                len(val_ds), cfg.data.eval_stride, cfg.data.prepared)  # fmt: skip
     n_params = sum(p.numel() for p in model_without_ddp.parameters())
     logger.info("DCTGCN %s: %d parameters", cfg.model, n_params)
     if init is not None:

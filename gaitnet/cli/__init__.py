@@ -81,6 +81,12 @@ def _add_simulator_options(p: argparse.ArgumentParser, out_help: str) -> None:
     p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides")
 
 
+FORCE_HELP = (
+    "run a session that fails the scene check (docs/vio.md, Scene check) and mark the result "
+    "unreliable (the override scene.refuse=false)"
+)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every command (``gaitnet --help``)."""
     parser = Parser(
@@ -202,6 +208,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--config", metavar="FILE", default=None, help="YAML filter config (default: built-in)"
     )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides")
     p.set_defaults(func=_cmd_vio)
 
@@ -294,6 +301,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--save-labels", action="store_true", help="also write every frame's label map (labels/)"
     )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.add_argument("--force", action="store_true", help=FORCE_HELP)
     p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides")
     p.set_defaults(func=_cmd_infer)
 

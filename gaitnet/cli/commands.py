@@ -169,7 +169,8 @@ def _cmd_vio(args: argparse.Namespace) -> int:
     from gaitnet.vio.report import summary, write_result
     from gaitnet.vio.run import run_vio
 
-    cfg = load_config(VioConfig, args.config, args.overrides)
+    forced = ["scene.refuse=false"] if args.force else []
+    cfg = load_config(VioConfig, args.config, [*args.overrides, *forced])
     check_output_folder(args.out, args.overwrite)
     session = open_session(args.session)
     result = run_vio(
@@ -180,6 +181,8 @@ def _cmd_vio(args: argparse.Namespace) -> int:
     out = write_result(result, args.out, dump_config(cfg), overwrite=args.overwrite)
     info = summary(result)
     gait = info["gait"]
+    if result.unreliable:
+        print(f"UNRELIABLE (--force): {'; '.join(result.unreliable)}")
     print(f"initialisation: {result.initialisation_note}")
     if result.smoother.get("ran"):
         print(f"smoother: {result.smoother['iterations']} Gauss–Newton iterations (sec. 3.5)")
@@ -259,7 +262,8 @@ def _cmd_infer(args: argparse.Namespace) -> int:
     from gaitnet.io.images import encode_png
     from gaitnet.pipeline.config import InferConfig
 
-    cfg = load_config(InferConfig, args.config, args.overrides)
+    forced = ["vio.scene.refuse=false"] if args.force else []
+    cfg = load_config(InferConfig, args.config, [*args.overrides, *forced])
     check_output_folder(args.out, args.overwrite)
     session = open_session(args.session)
     # the heavy imports (torch, onnxruntime) once the arguments are known to be good
@@ -313,6 +317,8 @@ def _cmd_infer(args: argparse.Namespace) -> int:
         raise
     n = len(result.t_s)
     seen = result.foot_measured.mean(axis=0)
+    if result.vio.unreliable:
+        print(f"UNRELIABLE (--force): {'; '.join(result.vio.unreliable)}")
     print(
         f"{n} frames ({result.t_s[-1] - result.t_s[0]:.1f} s) in {wall:.1f} s "
         f"({n / wall:.1f} frames/s): "

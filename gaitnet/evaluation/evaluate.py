@@ -32,10 +32,10 @@ inputs allow, in SI units:
 
 Every input is checked where it is read: a result folder that is missing or a file, a
 ``joints.npz`` that is not a readable archive of the right keys, dtypes and shapes, NaN or inf
-anywhere, timestamps that match no ground-truth frame, or a session without the ground truth
-that a result file needs, raise :class:`~gaitnet.errors.InputError` (the result) or
-:class:`~gaitnet.errors.SessionError` (the session) with one line naming the file. A metric
-that is not finite is never reported.
+anywhere, times that are not strictly increasing or match no ground-truth frame, or a session
+without the ground truth that a result file needs, raise :class:`~gaitnet.errors.InputError`
+(the result) or :class:`~gaitnet.errors.SessionError` (the session) with one line naming the
+file. A metric that is not finite is never reported.
 """
 
 from __future__ import annotations
@@ -108,10 +108,18 @@ def _load_joints(path: Path, error: type[GaitnetError]) -> tuple[np.ndarray, np.
         raise error(f"{path}: {len(t_ns)} 't_ns' for {len(positions)} frames of 'positions'")
     if len(t_ns) == 0:
         raise error(f"{path}: no frames")
+    t_ns = t_ns.astype(np.int64)
+    steps = np.flatnonzero(np.diff(t_ns) <= 0)
+    if steps.size:
+        k = int(steps[0]) + 1
+        raise error(
+            f"{path}: 't_ns' must be strictly increasing, but frame {k} has t_ns {t_ns[k]} "
+            f"after {t_ns[k - 1]}"
+        )
     positions = positions.astype(np.float64)
     if not np.all(np.isfinite(positions)):
         raise error(f"{path}: non-finite joint positions")
-    return t_ns.astype(np.int64), positions
+    return t_ns, positions
 
 
 def _load_trajectory(path: Path, error: type[GaitnetError]) -> tuple[np.ndarray, np.ndarray]:

@@ -11,7 +11,12 @@ work. :func:`parse_imu_payload` is a fast path for standard ``sensor_msgs/Imu`` 
 
 Errors: a file that is not a ROS1 bag, a bag without an index (a recording that was cut off:
 the message says how to rebuild it), a damaged index or damaged records raise
-:class:`~gaitnet.errors.SessionError` with a one-line message that names the bag file.
+:class:`~gaitnet.errors.SessionError` with a one-line message that names the bag file. A chunk
+is damaged when it does not decompress (its codec's own checks: bz2's CRC, an LZ4 frame's
+checksums where the frame has them) or when it holds, or decompresses to, another number of
+bytes than its header's ``size``; the message names the chunk by its byte offset in the file.
+ROS1 bags carry no checksum of their own, so changed bytes inside a chunk's messages that
+leave its size intact are not noticed here (the readers' value checks may still catch them).
 """
 
 from __future__ import annotations
@@ -63,6 +68,7 @@ class _ChunkLoc:
     datapos: int
     datasize: int
     compression: str
+    size: int = -1  # the header's uncompressed size (-1: not checked)
 
 
 @dataclass(frozen=True, slots=True)
@@ -120,14 +126,24 @@ class _Records:
         return data
 
     def scan_chunk(self, pos: int) -> _ChunkLoc:
-        """Read the CHUNK record header at file position ``pos``."""
+        """Read the CHUNK record header at file position ``pos``; an uncompressed chunk must
+        hold as many bytes as its header's ``size`` says (compressed ones are checked when
+        they are decompressed: :meth:`_chunk_data`)."""
         (hl,) = _U32.unpack(self.read_file(pos, 4))
         header = _parse_header(self.read_file(pos + 4, hl))
         if header.get(b"op") != bytes([_OP_CHUNK]):
             raise _DamagedError(f"no chunk record at byte {pos}")
-        (size,) = _U32.unpack(self.read_file(pos + 4 + hl, 4))
+        (datasize,) = _U32.unpack(self.read_file(pos + 4 + hl, 4))
         compression = header.get(b"compression", b"none").decode(errors="replace")
-        return _ChunkLoc(pos + 8 + hl, size, compression)
+        size_field = header.get(b"size", b"")
+        if len(size_field) != 4:
+            raise _DamagedError(f"chunk at byte {pos} has no 4-byte size in its header")
+        (size,) = _U32.unpack(size_field)
+        if compression == "none" and size != datasize:
+            raise _DamagedError(
+                f"chunk at byte {pos} holds {datasize} bytes, its header says {size}"
+            )
+        return _ChunkLoc(pos + 8 + hl, datasize, compression, size)
 
     def _chunk_data(self, chunk_pos: int) -> bytes:
         with self._lock:
@@ -149,6 +165,11 @@ class _Records:
             raise
         except Exception as exc:
             raise _DamagedError(f"chunk at byte {chunk_pos} does not decompress ({exc})") from exc
+        if loc.size >= 0 and len(data) != loc.size:
+            raise _DamagedError(
+                f"chunk at byte {chunk_pos} decompresses to {len(data)} bytes, its header says "
+                f"{loc.size}"
+            )
         with self._lock:
             self._cache[chunk_pos] = data
             while len(self._cache) > 4:

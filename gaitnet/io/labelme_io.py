@@ -10,8 +10,8 @@ Reading checks every value before labelme sees it; each problem is an
 :class:`~gaitnet.errors.InputError` with one line naming the file (and the shape): JSON that
 does not parse or is not UTF-8, missing or wrongly typed keys, shapes other than polygons (≥ 3
 points) and rectangles (2 points), points that are not finite ``[x, y]`` pairs, labels not in
-the class list, an ``imagePath`` outside the JSON's folder, a missing image, and an image
-whose size differs from ``imageWidth`` × ``imageHeight``.
+the class list, an ``imagePath`` outside the JSON's folder or holding a NUL character, a
+missing image, and an image whose size differs from ``imageWidth`` × ``imageHeight``.
 """
 
 from __future__ import annotations
@@ -117,7 +117,12 @@ def labelme_document(
 
 
 def resolve_image_path(json_path: Path, image_path: str) -> Path:
-    """The image a labelme JSON refers to; it must stay inside the JSON's folder tree."""
+    """The image a labelme JSON refers to; it must stay inside the JSON's folder tree and be
+    a name a file system can hold (no NUL character)."""
+    if "\x00" in image_path:
+        raise InputError(
+            f"{json_path}: imagePath {image_path!r:.80} holds a NUL character (not a file name)"
+        )
     folder = json_path.parent.resolve()
     candidate = (folder / image_path).resolve()
     if not candidate.is_relative_to(folder):

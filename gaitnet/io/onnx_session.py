@@ -5,7 +5,9 @@ The generic pieces of the project's ONNX model wrappers (one per model kind, e.g
 
 - :func:`open_session`: a session on an explicit provider list with a set intra-op thread
   count; a missing file, a folder, an unknown provider or a file onnxruntime cannot load is a
-  one-line :class:`OnnxInputError` naming the file.
+  one-line :class:`OnnxInputError` naming the file. So is a file whose SHA-256 differs from
+  the ``sha256`` its JSON sidecar records (``NAME.json`` beside ``NAME.onnx``, written by
+  ``export/to_onnx.py``; :func:`check_sidecar_sha256`): the file is hashed once per load.
 - :func:`model_metadata`: the model's ``metadata_props`` (key → string), where exporters
   record what a runtime must know (:func:`gaitnet.io.onnx_export.export_onnx_checked`).
 - :func:`check_input`: an array checked against the expected shape (ints fixed, other entries
@@ -17,6 +19,9 @@ The generic pieces of the project's ONNX model wrappers (one per model kind, e.g
 
 from __future__ import annotations
 
+import hashlib
+import json
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -28,6 +33,7 @@ from gaitnet.errors import InputError, one_line
 __all__ = [
     "OnnxInputError",
     "check_input",
+    "check_sidecar_sha256",
     "is_ort_error",
     "model_metadata",
     "open_session",
@@ -45,13 +51,53 @@ def is_ort_error(exc: BaseException) -> bool:
     return type(exc).__module__.startswith("onnxruntime")
 
 
+_SHA256_HEX = re.compile(r"^[0-9a-f]{64}$")
+
+
+def check_sidecar_sha256(path: str | Path) -> None:
+    """Refuse the model file ``path`` when its JSON sidecar (``path`` with the suffix
+    ``.json``) records a ``sha256`` that is not the file's (a damaged, truncated or replaced
+    model). No sidecar, or a sidecar without ``sha256``, is not checked; a sidecar that is not
+    a JSON object, or whose ``sha256`` is not 64 hex digits, is refused."""
+    path = Path(path)
+    sidecar = path.with_suffix(".json")
+    if not sidecar.is_file():
+        return
+    try:
+        doc = json.loads(sidecar.read_text(encoding="utf-8"))
+    except (ValueError, RecursionError) as exc:  # not JSON, not UTF-8, nested too deeply
+        raise OnnxInputError(
+            f"ONNX model {path}: its sidecar {sidecar} is not readable JSON "
+            f"({one_line(exc, limit=120)})"
+        ) from None
+    if not isinstance(doc, dict):
+        raise OnnxInputError(f"ONNX model {path}: its sidecar {sidecar} is not a JSON object")
+    if "sha256" not in doc:
+        return
+    recorded = doc["sha256"]
+    if not isinstance(recorded, str) or not _SHA256_HEX.match(recorded.lower()):
+        raise OnnxInputError(
+            f"ONNX model {path}: its sidecar {sidecar} has 'sha256' {recorded!r:.80}, not 64 "
+            "hex digits"
+        )
+    with path.open("rb") as f:
+        actual = hashlib.file_digest(f, "sha256").hexdigest()
+    if actual != recorded.lower():
+        raise OnnxInputError(
+            f"ONNX model {path}: its SHA-256 is {actual}, but its sidecar {sidecar} records "
+            f"{recorded} (a damaged or replaced file: restore or re-export the model with its "
+            "sidecar)"
+        )
+
+
 def open_session(
     path: str | Path,
     threads: int = 1,
     providers: Sequence[str] = ("CPUExecutionProvider",),
 ) -> ort.InferenceSession:
     """An onnxruntime session on ``path`` with ``intra_op_num_threads = threads`` (0: the
-    runtime's default), one inter-op thread and exactly ``providers`` (in order)."""
+    runtime's default), one inter-op thread and exactly ``providers`` (in order); the file is
+    first checked against its sidecar's SHA-256 (:func:`check_sidecar_sha256`)."""
     path = Path(path)
     if not isinstance(threads, int) or isinstance(threads, bool) or not 0 <= threads <= 1024:
         raise OnnxInputError(f"ONNX threads must be an integer in [0, 1024], got {threads!r}")
@@ -68,6 +114,7 @@ def open_session(
         raise OnnxInputError(f"ONNX model {path} is a folder, expected an .onnx file")
     if not path.is_file():
         raise OnnxInputError(f"ONNX model {path} does not exist")
+    check_sidecar_sha256(path)
     options = ort.SessionOptions()
     options.intra_op_num_threads = int(threads)
     options.inter_op_num_threads = 1

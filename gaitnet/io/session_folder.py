@@ -19,8 +19,8 @@ those of :meth:`SessionFolder.frame`.
 Symbolic links: a link inside the session folder whose target lies outside it (``session.yaml``,
 ``imu.csv``, ``color/``, ``depth/`` or a frame file) is refused with a
 :class:`~gaitnet.errors.SessionError` naming the link and its target, so a session is
-self-contained and what ``check`` validated is what later stages read. Links that stay inside
-the folder are followed.
+self-contained and what ``check`` validated is what later stages read; so is a link that
+leads back to itself (a loop). Links that stay inside the folder are followed.
 """
 
 from __future__ import annotations
@@ -55,10 +55,14 @@ _T_NS_NAME = re.compile(r"^[0-9]{1,19}$")
 
 
 def check_inside(path: Path, root: Path) -> None:
-    """Refuse ``path`` if it is a symbolic link whose target lies outside ``root``."""
+    """Refuse ``path`` if it is a symbolic link whose target lies outside ``root``, or a link
+    that leads back to itself (a loop: to itself, or through other links)."""
     if not path.is_symlink():
         return
-    target = path.resolve()
+    try:
+        target = path.resolve()
+    except RuntimeError:  # pathlib's "Symlink loop from ..."
+        raise SessionError(f"{path}: symbolic link loop (the link leads back to itself)") from None
     if not target.is_relative_to(root.resolve()):
         raise SessionError(
             f"{path}: symbolic link to {target}, outside the session folder "

@@ -30,12 +30,16 @@ from typing import Any, Protocol
 import numpy as np
 
 from gaitnet.checks import check_int_range, check_positive, check_range
+from gaitnet.errors import SessionError
 
 SESSION_FORMAT_VERSION = 1
 T_NS_MAX = 2**63 - 1
 """Largest timestamp [ns] a session can hold (int64); timestamps are never negative."""
 RIGID_TOLERANCE = 1e-5
 """Largest deviation of ``R Rᵀ`` from the identity accepted in a rigid transform."""
+APRILTAG_FAMILIES = ("tag36h11",)
+"""The AprilTag families the filter decodes (``gaitnet.vio.tag_detectors``); a board of another
+family is refused where the calibration is read, not when the filter meets it."""
 
 
 def _set(obj: Any, name: str, value: Any) -> None:
@@ -190,8 +194,9 @@ class AprilTagBoard:
     the tag centre. A sheet lying face up on the floor therefore has ``T_WfromBoard`` = a
     rotation about world z and z = 0.
 
-    Checked: ``rows``, ``cols`` ≥ 1; ``tag_size_m`` positive and finite; ``gap_m`` finite,
-    ≥ 0; ``first_id`` ≥ 0; ``T_WfromBoard`` a finite rigid transform.
+    Checked: ``family`` one of :data:`APRILTAG_FAMILIES`; ``rows``, ``cols`` ≥ 1;
+    ``tag_size_m`` positive and finite; ``gap_m`` finite, ≥ 0; ``first_id`` ≥ 0;
+    ``T_WfromBoard`` a finite rigid transform.
     """
 
     name: str
@@ -207,6 +212,11 @@ class AprilTagBoard:
         for name in ("name", "family"):
             if not isinstance(getattr(self, name), str) or not getattr(self, name):
                 raise ValueError(f"{name} must be a non-empty string, got {getattr(self, name)!r}")
+        if self.family not in APRILTAG_FAMILIES:
+            raise ValueError(
+                f"family {self.family!r} cannot be decoded (supported: "
+                f"{', '.join(APRILTAG_FAMILIES)})"
+            )
         _set(self, "rows", check_int_range("rows", self.rows, 1))
         _set(self, "cols", check_int_range("cols", self.cols, 1))
         _set(self, "tag_size_m", check_positive("tag_size_m", self.tag_size_m))
@@ -346,3 +356,18 @@ class SessionSource(Protocol):
     def frame(self, index: int) -> Frame: ...
 
     def frames(self) -> Iterator[Frame]: ...
+
+
+def require_depth_aligned(source: SessionSource, needed_by: str) -> None:
+    """Refuse a session whose ``session.yaml`` says ``depth_aligned_to_color: false``:
+    ``needed_by`` (e.g. "the filter", "the segmenter") reads a frame's depth at its colour
+    pixels. The one check every consumer of depth uses; the message names the session's
+    ``session.yaml`` (a folder's; a bag's file), a :class:`~gaitnet.errors.SessionError`."""
+    if source.calibration.depth_aligned_to_color:
+        return
+    root = getattr(source, "root", None)
+    where = root / "session.yaml" if root is not None else getattr(source, "path", "session")
+    raise SessionError(
+        f"{where}: depth_aligned_to_color is false, but {needed_by} needs depth aligned to "
+        "colour (align the depth frames to the colour camera and set it to true)"
+    )

@@ -7,6 +7,7 @@ its last observed frame as reference, as 21-node pose vectors (:mod:`gaitnet.mot
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +30,8 @@ class WalkingWindows(Dataset):
     of float32 tensors: ``poses`` (W, 21) in the node layout of :mod:`gaitnet.motion.gcn`,
     ``trans`` (W, 3), ``betas`` (B,), and ``clip`` (int index into the prepared file). With
     ``normalise_heading`` (default) each window goes through :func:`normalise_heading` with
-    the last observed frame (``n_past − 1``) as reference.
+    the last observed frame (``n_past − 1``) as reference. ``dataset_stride`` maps sub-dataset
+    names (any case) to their own stride; each must name a sub-dataset of ``split``.
     """
 
     def __init__(
@@ -41,22 +43,34 @@ class WalkingWindows(Dataset):
         n_future: int = 10,
         stride: int = 5,
         normalise_heading: bool = True,
+        dataset_stride: Mapping[str, int] | None = None,
     ):
         self.data = prepared if isinstance(prepared, PreparedWalking) else load_prepared(prepared)
         if split not in SPLITS:
             raise InputError(f"split must be 'train', 'val' or 'test', got {split!r}")
-        if n_past < 1 or n_future < 0 or stride < 1:
+        strides = {str(k).lower(): int(v) for k, v in (dataset_stride or {}).items()}
+        if n_past < 1 or n_future < 0 or min([stride, *strides.values()]) < 1:
             raise InputError(
-                f"need n_past >= 1, n_future >= 0, stride >= 1; got {n_past}, {n_future}, {stride}"
+                f"need n_past >= 1, n_future >= 0, strides >= 1; got {n_past}, {n_future}, "
+                f"{stride}, {strides}"
             )
         self.split = split
         self.n_past = int(n_past)
         self.window = int(n_past + n_future)
         self.normalise = bool(normalise_heading)
+        clips = np.flatnonzero(self.data.clip_split == split)
+        datasets = {str(self.data.clip_dataset[c]).lower() for c in clips}
+        missing = sorted(set(strides) - datasets)
+        if missing:
+            raise InputError(
+                f"{self.data.path}: no clip of sub-dataset {missing[0]!r} in split {split!r} "
+                f"(sub-datasets there: {', '.join(sorted(datasets)) or 'none'})"
+            )
         index = []
-        for c in np.flatnonzero(self.data.clip_split == split):
+        for c in clips:
+            step = strides.get(str(self.data.clip_dataset[c]).lower(), int(stride))
             a, b = int(self.data.clip_offset[c]), int(self.data.clip_offset[c + 1])
-            for start in range(a, b - self.window + 1, int(stride)):
+            for start in range(a, b - self.window + 1, step):
                 index.append((int(c), start))
         if not index:
             raise AmassError(

@@ -19,7 +19,9 @@
 - ``report.html``: the self-contained gait report (header, time-distance table per side with
   symmetry indices, per-stride table, figures), and the figures as PNG
   (``foot_trajectories.png``, ``top_view.png``, ``joint_angles.png``, ``gait_phases.png``);
-- ``summary.json``: session facts, models, skeleton, the world frame (``world_frame``: the
+- ``summary.json``: ``reliable`` (false with ``unreliable_reasons`` when a session that failed
+  the scene check ran with ``--force``; the report's header says so too), session facts,
+  models, skeleton, the world frame (``world_frame``: the
   filter's initialisation, ``apriltag`` or ``gravity_floor``, and its note), extrinsic, the
   gait summary, timings.
 """
@@ -111,6 +113,8 @@ def result_summary(r: InferResult, session_facts: dict[str, object]) -> dict[str
     """The facts ``summary.json`` holds (also the report's header)."""
     seen = r.foot_measured.mean(axis=0)
     return {
+        "reliable": not r.vio.unreliable,
+        "unreliable_reasons": list(r.vio.unreliable),
         "session": session_facts,
         "frames": int(len(r.t_s)),
         "duration_s": float(r.t_s[-1] - r.t_s[0]) if len(r.t_s) > 1 else 0.0,
@@ -199,6 +203,9 @@ def _write_report(
     for name, (_, png) in zip(names, figures, strict=True):
         write_png(stage / f"{name}.png", png)
     header = {
+        **(
+            {"RELIABLE": "no (--force): " + "; ".join(r.vio.unreliable)} if r.vio.unreliable else {}
+        ),
         "session": facts.get("path", ""),
         "device": facts.get("device", ""),
         "duration [s]": round(float(r.t_s[-1] - r.t_s[0]), 2),

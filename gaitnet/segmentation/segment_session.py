@@ -17,6 +17,10 @@ when complete (:func:`gaitnet.io.atomic.staged_folder`):
 - ``contact_sheet.png``: evenly spaced frames, RGB with the labels laid over it | label map;
 - ``summary.json``: model, frames, feet seen, where the time went.
 
+A session whose depth is not aligned to colour (``depth_aligned_to_color: false``) is refused
+before anything is written (:func:`gaitnet.io.types.require_depth_aligned`): the keypoints read
+the depth at the colour pixels of the labels.
+
 The accelerometer's average is the gravity direction up to the walking accelerations that do
 not cancel over the window (a few degrees at normal walking with a 1 s window); ``gaitnet
 infer`` gives the filter's gravity instead.
@@ -41,7 +45,7 @@ from gaitnet.errors import InputError
 from gaitnet.io.atomic import staged_folder
 from gaitnet.io.contact_sheet import colourise_labels, contact_sheet, write_png
 from gaitnet.io.images import encode_png
-from gaitnet.io.types import ImuSamples, SessionSource
+from gaitnet.io.types import ImuSamples, SessionSource, require_depth_aligned
 from gaitnet.segmentation.hha import HhaParams, find_floor, hha_encode, hha_stride
 from gaitnet.segmentation.midline import MidlineEstimate, pair_midpoint
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
@@ -145,6 +149,7 @@ def segment_session(
     progress: Progress | None = None,
 ) -> SegmentResult:
     """Segment every frame of ``session`` into ``out_dir`` (module docstring)."""
+    require_depth_aligned(session, "the segmenter")
     hha_params = hha_params or HhaParams()
     keypoint_params = keypoint_params or FootKeypointParams()
     midline = MidlineEstimate(keypoint_params)  # the first frames side the later ones

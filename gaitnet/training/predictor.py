@@ -79,6 +79,10 @@ class DataConfig:
     prepared: Path = Path("data/cache/synthwalk_walking.npz")
     split: DatasetSplit | None = None
     train_stride: int = 2
+    #: training-window stride per sub-dataset (case-insensitive name → stride), overriding
+    #: ``train_stride`` for that sub-dataset's clips: a smaller stride weights a small data set
+    #: (e.g. a few real walks beside many synthetic ones) up by giving it more windows.
+    dataset_train_stride: dict[str, int] = field(default_factory=dict)
     eval_stride: int = 5
     normalise_heading: bool = True
     preload: bool = True
@@ -88,6 +92,10 @@ class DataConfig:
         if not str(self.prepared).strip():
             raise ValueError("data.prepared must name the prepared walking file")
         check_int_range("data.train_stride", self.train_stride, 1, 100_000)
+        for name, stride in self.dataset_train_stride.items():
+            if not isinstance(name, str) or not name.strip():
+                raise ValueError(f"data.dataset_train_stride: {name!r} is not a sub-dataset name")
+            check_int_range(f"data.dataset_train_stride.{name}", stride, 1, 100_000)
         check_int_range("data.eval_stride", self.eval_stride, 1, 100_000)
         check_int_range("data.num_workers", self.num_workers, 0, 256)
 
@@ -289,10 +297,12 @@ def build_windows(
     stride: int,
     prepared: PreparedWalking | None = None,
     skeletons: np.ndarray | None = None,
+    dataset_stride: dict[str, int] | None = None,
 ) -> PoseWindows:
     """Windows of ``n_past + n_future`` frames of ``split`` from the configured prepared file;
     items are (poses, clip skeleton) pairs (:class:`PoseWindows`), ``skeletons`` (C, 9, 3)
-    defaulting to :func:`clip_skeletons`."""
+    defaulting to :func:`clip_skeletons`; ``dataset_stride`` overrides ``stride`` per
+    sub-dataset (:attr:`DataConfig.dataset_train_stride`)."""
     if prepared is None:
         prepared = prepared_with_split(load_prepared(cfg.data.prepared), cfg.data.split)
     if skeletons is None:
@@ -304,6 +314,7 @@ def build_windows(
         n_future=cfg.model.n_future,
         stride=stride,
         normalise_heading=cfg.data.normalise_heading,
+        dataset_stride=dataset_stride,
     )
     logger.info(
         "%s: %d windows from %d clips (stride %d)",

@@ -6,7 +6,8 @@ Sections: ``imu`` (noise densities), ``init`` (:class:`~gaitnet.vio.initialise.I
 (:class:`~gaitnet.vio.apriltags.AprilTagParams`), ``floor``
 (:class:`~gaitnet.geometry.floor_plane.FloorParams`), ``feet``
 (:class:`~gaitnet.vio.feet.FootParams`),
-``stance`` (:class:`~gaitnet.vio.stance_tracker.StanceParams`), ``smoother`` and ``gait``.
+``stance`` (:class:`~gaitnet.vio.stance_tracker.StanceParams`), ``smoother``, ``gait`` and
+``scene`` (:class:`~gaitnet.vio.scene_check.SceneParams`).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from gaitnet.vio.apriltags import AprilTagParams
 from gaitnet.vio.feet import FootParams
 from gaitnet.vio.initialise import InitParams
 from gaitnet.vio.odometry import OdometryParams
+from gaitnet.vio.scene_check import SceneParams
 from gaitnet.vio.stance_tracker import StanceParams
 
 __all__ = ["FilterParams", "GaitParams", "ImuNoiseParams", "SmootherParams", "VioConfig"]
@@ -173,6 +175,7 @@ class VioConfig:
     stance: StanceParams = field(default_factory=StanceParams)
     smoother: SmootherParams = field(default_factory=SmootherParams)
     gait: GaitParams = field(default_factory=GaitParams)
+    scene: SceneParams = field(default_factory=SceneParams)
 
     def imu_noise(self, calib: SessionCalibration) -> ImuNoise:
         """The densities the filter uses: session.yaml's when ``imu.from_session`` and the

@@ -25,7 +25,7 @@ from gaitnet.vio.state import FilterState, ImuState
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Initialisation", "InitParams", "initialise", "up_in_camera"]
+__all__ = ["Initialisation", "InitParams", "initialise", "standing_up", "up_in_camera"]
 
 
 @dataclass(frozen=True)
@@ -85,6 +85,14 @@ def _window(imu: ImuSamples, t0_ns: int, seconds: float) -> tuple[np.ndarray, np
         sel = np.zeros(len(imu), dtype=bool)
         sel[: min(len(imu), 20)] = True
     return imu.accel[sel], imu.gyro[sel]
+
+
+def standing_up(imu: ImuSamples, t0_ns: int, params: InitParams) -> np.ndarray:
+    """Up in the IMU frame (unit): the accelerometer's mean specific force over the standing
+    window from ``t0_ns`` (a still accelerometer reads +g upwards)."""
+    accel, _ = _window(imu, t0_ns, params.standing_window_s)
+    mean = accel.mean(axis=0)
+    return mean / max(float(np.linalg.norm(mean)), 1e-12)
 
 
 def _gyro_bias(gyro: np.ndarray, params: InitParams) -> np.ndarray:

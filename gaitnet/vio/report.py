@@ -9,8 +9,9 @@ Files, all written into a staging folder that appears at the output path only wh
   IMU-only dead-reckoning baseline;
 - ``stance_feet.csv``: one row per stance-foot landmark;
 - ``strides.csv``: one row per stride (:data:`gaitnet.vio.gait.STRIDE_COLUMNS`);
-- ``summary.json``: gait summary per side, walking speed, distance, measurements used and
-  skipped with reasons, initialisation, timings;
+- ``summary.json``: ``reliable`` (false with ``unreliable_reasons`` when a session that failed
+  the scene check ran with ``--force``), gait summary per side, walking speed, distance,
+  measurements used and skipped with reasons, initialisation, timings;
 - ``trajectory.png``: top view of the trajectory and the stance feet (left red, right green,
   the usual gait-lab colours; docs/ecosystem.md);
 - ``vio_config.yaml``: the resolved config.
@@ -71,6 +72,8 @@ def summary(result: VioResult) -> dict[str, object]:
     speeds = [s.speed_mps for s in result.strides if s.steady]
     return _finite_or_none(
         {
+            "reliable": not result.unreliable,
+            "unreliable_reasons": list(result.unreliable),
             "frames": int(len(result.t_s)),
             "duration_s": duration,
             "distance_m": float(steps.sum()),

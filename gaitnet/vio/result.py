@@ -41,7 +41,8 @@ class VioResult:
     sentence saying how, per-update counts of used and skipped measurements with reasons,
     CPU seconds of the calling thread per stage ``timings_s`` (the session reader's
     read-ahead thread is not in them), and the smoother's diagnostics ``smoother`` (empty
-    when it did not run)."""
+    when it did not run); ``unreliable``: why the result cannot be trusted (the scene check's
+    problems of a run with ``scene.refuse: false``; empty when it passed)."""
 
     t_s: np.ndarray
     T_WfromI_filter: np.ndarray
@@ -61,6 +62,7 @@ class VioResult:
     used: Counter = field(default_factory=Counter)
     skipped: dict[str, Counter] = field(default_factory=dict)
     timings_s: dict[str, float] = field(default_factory=dict)
+    unreliable: list[str] = field(default_factory=list)
 
     def skip(self, kind: str, reason: str) -> None:
         """Count one skipped ``kind`` measurement (``vo``, ``tag``, ``foot``, ``frame``)."""

@@ -43,7 +43,7 @@ import numpy as np
 from gaitnet.errors import SessionError
 from gaitnet.geometry import make_T
 from gaitnet.geometry.floor_plane import fit_floor_depth
-from gaitnet.io.types import Frame, SessionSource
+from gaitnet.io.types import Frame, SessionSource, require_depth_aligned
 from gaitnet.vio import covariance
 from gaitnet.vio.config import VioConfig
 from gaitnet.vio.errors import FilterDivergedError
@@ -56,6 +56,7 @@ from gaitnet.vio.measurement import Measurement
 from gaitnet.vio.odometry import FrameOdometry
 from gaitnet.vio.records import FilterRecorder
 from gaitnet.vio.result import StanceFoot, VioResult
+from gaitnet.vio.scene_check import screen_session
 from gaitnet.vio.smoother import SmootherOptions, SmootherResult, smooth
 from gaitnet.vio.state import FilterState
 from gaitnet.vio.tag_refusals import RefusedSheets, within_drift
@@ -131,8 +132,7 @@ def run_vio(
     from gaitnet.vio.vo_model import vo_measurement
 
     calib = source.calibration
-    if not calib.depth_aligned_to_color:
-        raise SessionError("the filter needs depth aligned to colour (session.yaml)")
+    require_depth_aligned(source, "the filter")
     K = calib.color.K
     T_CfromI = calib.T_CfromI
     T_IfromC = np.linalg.inv(T_CfromI)
@@ -145,8 +145,8 @@ def run_vio(
     clock = Counter()
     tic = time.thread_time()
 
-    first = [source.frame(i) for i in range(min(len(source), cfg.init.max_tag_frames))]
-    init = initialise(first, imu, calib, t_ref_ns, cfg.init, cfg.tags, cfg.floor)
+    screening = screen_session(source, cfg.scene, cfg.init, cfg.floor, cfg.init.max_tag_frames)
+    init = initialise(screening.first, imu, calib, t_ref_ns, cfg.init, cfg.tags, cfg.floor)
     state = init.state
     gravity = cfg.filter.gravity_mps2 or init.measured_gravity_mps2
     baseline = state.copy()
@@ -181,6 +181,9 @@ def run_vio(
         t = (frame.t_ns - t_ref_ns) * 1e-9
         if k < init.frame_index:
             skip("frame", "before the initialising frame")
+            continue
+        if k > screening.last_index:
+            skip("frame", "after the IMU stream's last sample")
             continue
         if k != init.frame_index and t <= state.imu.t_s:
             skip("frame", "time does not advance")
@@ -401,6 +404,7 @@ def run_vio(
         used=result_used,
         skipped=skipped,
         timings_s=dict(clock),
+        unreliable=list(screening.problems),
     )
 
 
