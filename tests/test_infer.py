@@ -87,6 +87,25 @@ def test_evaluate_reads_the_result(inferred: Path, tiny_sim_session: Path, capsy
         assert key in out
 
 
+def test_reliability_and_dropped_feet_are_recorded(inferred: Path) -> None:
+    from gaitnet.pipeline.infer import _too_few_feet
+    from gaitnet.segmentation.postprocess import DROP_REASONS
+
+    summary = json.loads((inferred / "summary.json").read_text())
+    seen = summary["feet_measured_fraction"]
+    assert summary["reliable"] == (min(seen.values()) >= 0.2)
+    assert set(summary["feet_dropped"]) <= set(DROP_REASONS)
+    assert ("RELIABLE" in (inferred / "report.html").read_text()) != summary["reliable"]
+    measured = np.full((10, 2, 3), np.nan)
+    measured[:3, 0] = 0.0  # left seen in 30 % of the frames
+    measured[:1, 1] = 0.0  # right in 10 %
+    assert _too_few_feet(measured, 0.1) == []
+    assert _too_few_feet(measured, 0.0) == []
+    assert _too_few_feet(measured, 0.2) == [
+        "feet measured in too few frames (left 30 %, right 10 %; need 20 %)"
+    ]
+
+
 def test_world_frame_is_recorded_and_evaluate_warns_on_its_own(
     inferred: Path, tiny_sim_session: Path, tmp_path: Path, caplog
 ) -> None:
@@ -180,6 +199,10 @@ def test_default_yaml_is_the_built_in_config_and_unused_keys_are_refused() -> No
             load_config(InferConfig, None, [key])
 
 
+#: One filter run without the smoother (the workers only concern the segmentation beside it).
+FIRST_RUN_ONLY = ["vio.smoother.enabled=false", "pipeline.segmented_stances=false"]
+
+
 def test_workers_act_and_do_not_change_the_result(
     tiny_sim_session: Path, tiny_segmenter: Path, monkeypatch
 ) -> None:
@@ -201,12 +224,12 @@ def test_workers_act_and_do_not_change_the_result(
     seg = OnnxSegmenter(tiny_segmenter)
     one = infer.observe(
         session,
-        load_config(InferConfig, None, ["vio.smoother.enabled=false", "pipeline.workers=1"]),
+        load_config(InferConfig, None, [*FIRST_RUN_ONLY, "pipeline.workers=1"]),
         seg,
     )
     three = infer.observe(
         session,
-        load_config(InferConfig, None, ["vio.smoother.enabled=false", "pipeline.workers=3"]),
+        load_config(InferConfig, None, [*FIRST_RUN_ONLY, "pipeline.workers=3"]),
         seg,
     )
     assert seen == [1, 3]

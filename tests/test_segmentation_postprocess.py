@@ -564,3 +564,39 @@ def test_leg_side_reads_the_leg_blob_where_it_lies_in_the_image() -> None:
         "unknown", {"mid": (34.0, 85.0)}, {"mid": None}, 121, 0.0, foot[:, ::-1]
     )
     assert _leg_side(mirrored_foot, mirrored, K, np.array([-1.0, 0.0, 0.0]), attach=2) == "left"
+
+
+def test_blobs_that_are_no_foot_are_dropped_and_counted() -> None:
+    """A shoe's size at its depth (min_area_m2, max_area_m2), near the floor, within reach: each
+    dropped blob is counted by its reason; the size limits act."""
+    from collections import Counter
+
+    depth, g = floor_depth()
+    labels = np.zeros((H, W), np.uint8)
+    foot_box(labels, depth, g, 40, 55, 60, 89)  # 16 × 30 px at ~1.1 m: about 0.05 m²
+    mat = np.zeros((H, W), np.uint8)
+    foot_box(mat, depth, g, 20, 139, 60, 89)  # a floor mat labelled foot: about 0.4 m²
+    dropped: Counter = Counter()
+    assert foot_keypoints(mat, depth, K, NO_SPLIT, gravity_C=g, dropped=dropped) == []
+    assert dropped == {"not a shoe's size": 1}
+    (foot,) = foot_keypoints(labels, depth, K, NO_SPLIT, gravity_C=g)
+    z = depth[foot.mask].astype(np.float64)
+    area = float(np.sum(z**2) / F**2)
+    assert 0.03 < area < 0.1
+    for lo, hi, kept in ((area * 0.9, area * 1.1, 1), (area * 1.1, 1.0, 0), (0.0, area * 0.9, 0)):
+        params = replace(NO_SPLIT, min_area_m2=lo, max_area_m2=hi)
+        dropped = Counter()
+        feet = foot_keypoints(labels, depth, K, params, gravity_C=g, dropped=dropped)
+        assert len(feet) == kept and dropped == ({} if kept else {"not a shoe's size": 1})
+    high = floor_depth()[0]
+    box = labels == 1
+    raise_to(high, box, g, 0.7)
+    dropped = Counter()
+    assert foot_keypoints(labels, high, K, NO_SPLIT, gravity_C=g, dropped=dropped) == []
+    assert dropped == {"above the floor": 1}
+    near = replace(NO_SPLIT, max_distance_m=0.2)
+    dropped = Counter()
+    assert foot_keypoints(labels, depth, K, near, gravity_C=g, dropped=dropped) == []
+    assert dropped == {"beyond leg reach": 1}
+    with pytest.raises(ValueError, match="max_area_m2"):
+        FootKeypointParams(min_area_m2=0.2, max_area_m2=0.1)

@@ -317,8 +317,8 @@ def _cmd_infer(args: argparse.Namespace) -> int:
         raise
     n = len(result.t_s)
     seen = result.foot_measured.mean(axis=0)
-    if result.vio.unreliable:
-        print(f"UNRELIABLE (--force): {'; '.join(result.vio.unreliable)}")
+    if result.unreliable:
+        print(f"UNRELIABLE: {'; '.join(result.unreliable)}")
     print(
         f"{n} frames ({result.t_s[-1] - result.t_s[0]:.1f} s) in {wall:.1f} s "
         f"({n / wall:.1f} frames/s): "

@@ -110,6 +110,10 @@ class PipelineParams:
     the depth image does not show (a toe in the stereo shadow of the near thigh, under a knee
     flexed in early stance) is a stance landmark too (:mod:`gaitnet.vio.feet_segmented`);
     false: the filter's first run, from depth alone, is the result."""
+    min_foot_seen_fraction: float = 0.2
+    """A result where a foot was measured in fewer of the frames than this (either side) is
+    marked unreliable (``"reliable": false`` in ``summary.json``): too few plausible feet to
+    measure the gait (simulated walks: 0.59–0.80 per side); 0: never."""
     subject_height_m: float = 0.0
     """Body height for the anthropometric skeleton [m]; 0: from the standing camera height
     (``camera_height_fraction``)."""
@@ -177,6 +181,7 @@ class PipelineParams:
                 f"pipeline.foot_keypoint must be top, mid or bottom, got {self.foot_keypoint!r}"
             )
         check_int_range("pipeline.workers", self.workers, 1, 64)
+        check_range("pipeline.min_foot_seen_fraction", self.min_foot_seen_fraction, 0.0, 1.0)
         if self.gap_fill not in ("swing", "bridge", "none"):
             raise ValueError(
                 f"pipeline.gap_fill must be swing, bridge or none, got {self.gap_fill!r}"

@@ -12,7 +12,8 @@ could not tell are given the side of the nearer predicted foot when one is given
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections import Counter
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -39,15 +40,17 @@ class FrameFeet:
     (a row of NaN where not seen), the label map after the post-processing (foot pixels only
     where a foot was kept: :func:`~gaitnet.segmentation.postprocess.kept_feet_labels`) and the
     number of foot blobs, the midpoint of the two feet along the camera's left axis where
-    they were sided apart (:func:`gaitnet.segmentation.midline.pair_midpoint`; else None), and
+    they were sided apart (:func:`gaitnet.segmentation.midline.pair_midpoint`; else None),
     the segmenter's foot pixels before the post-processing (for the filter's second run,
-    ``pipeline.segmented_stances``; None: no foot pixel)."""
+    ``pipeline.segmented_stances``; None: no foot pixel), and the foot blobs dropped as no
+    foot, by reason (:data:`gaitnet.segmentation.postprocess.DROP_REASONS`)."""
 
     foot_W: np.ndarray
     labels: np.ndarray
     n_blobs: int
     pair_midpoint_m: float | None = None
     foot_mask: FootMask | None = None
+    dropped: Counter = field(default_factory=Counter)
 
 
 def floor_in_camera(T_WfromC: np.ndarray) -> FloorPlane:
@@ -77,7 +80,10 @@ def measure_feet(
     stride = hha_stride(segmenter.input_scale)
     hha = hha_encode(frame.depth_m, K, gravity_C, hha_params, plane=plane, stride=stride)
     labels = segmenter.labels(frame.rgb, hha)
-    feet = foot_keypoints(labels, frame.depth_m, K, feet_params, gravity_C=gravity_C, plane=plane)
+    dropped: Counter = Counter()
+    feet = foot_keypoints(
+        labels, frame.depth_m, K, feet_params, gravity_C=gravity_C, plane=plane, dropped=dropped
+    )
     foot_W = np.full((2, 3), np.nan)
     for foot in feet:  # largest first: a side keeps its largest blob
         p_C = foot.keypoints_C.get(keypoint)
@@ -95,4 +101,5 @@ def measure_feet(
         len(feet),
         pair_midpoint(feet, feet_params),
         FootMask.from_labels(labels),  # label 1: foot
+        dropped,
     )

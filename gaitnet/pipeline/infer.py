@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections import deque
+from collections import Counter, deque
 from collections.abc import Callable, Iterable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
@@ -113,7 +113,10 @@ class InferResult:
     10, 11] (the layout of ``groundtruth/joints.npz``); ``feet_W`` (n, 2, 3) the shoe markers
     of the corrected pose (left, right), ``foot_measured`` (n, 2) whether the segmenter saw
     each foot, ``foot_measured_W`` (n, 2, 3) the measured points (NaN where not seen);
-    ``contact`` (n, 2) the filter's stance flags.
+    ``contact`` (n, 2) the filter's stance flags; ``feet_dropped`` the foot blobs dropped as
+    no foot, by reason; ``unreliable`` why the result cannot be trusted (the scene check's
+    problems under ``--force``, a foot seen in fewer than ``pipeline.min_foot_seen_fraction``
+    of the frames; empty: nothing known).
     """
 
     vio: VioResult
@@ -133,6 +136,8 @@ class InferResult:
     segmenter_path: str
     predictor_path: str
     timings_s: dict[str, float] = field(default_factory=dict)
+    feet_dropped: dict[str, int] = field(default_factory=dict)
+    unreliable: list[str] = field(default_factory=list)
 
 
 def _contact(vio: VioResult, t_s: np.ndarray) -> np.ndarray:
@@ -157,13 +162,15 @@ def _initial_pose(T_WfromP: np.ndarray, skeleton: LowerBodySkeleton) -> PoseStat
 class Observations:
     """Steps 1–2 of :func:`run_infer`: the filter's result and, per processed frame, the frame
     time ``t_ns`` (n,) and the measured world foot points ``foot_W`` (n, 2, 3) (NaN where not
-    seen), with the wall-clock seconds of each stage."""
+    seen), with the wall-clock seconds of each stage and the foot blobs the post-processing
+    dropped as no foot, by reason."""
 
     vio: VioResult
     t_ns: np.ndarray
     foot_W: np.ndarray
     segmenter_path: str
     timings_s: dict[str, float] = field(default_factory=dict)
+    feet_dropped: Counter = field(default_factory=Counter)
 
 
 def observe(
@@ -190,6 +197,7 @@ def observe(
     """
     timings: dict[str, float] = {"segmenter_cpu": 0.0}
     masks: dict[int, FootMask] = {}
+    dropped: Counter = Counter()
 
     def bar(stage: str) -> Progress | None:
         return progress(stage) if progress is not None else None
@@ -219,6 +227,7 @@ def observe(
             midline.add(feet.pair_midpoint_m, up_C=T_filter[len(feet_f)][2, :3])
             feet_f.append(feet.foot_W)
             frame_ns.append(t_ns)
+            dropped.update(feet.dropped)
             if feet.foot_mask is not None and cfg.pipeline.segmented_stances:
                 masks[t_ns] = feet.foot_mask
             timings["segmenter_cpu"] += cpu_s
@@ -267,7 +276,9 @@ def observe(
     T_move = vio.T_WfromC @ np.linalg.inv(T_f)  # filter pose → smoothed pose, per frame
     measured = np.einsum("kij,ksj->ksi", T_move[:, :3, :3], np.array(feet_f))
     measured += T_move[:, None, :3, 3]
-    return Observations(vio, np.array(frame_ns, np.int64), measured, str(segmenter.path), timings)
+    return Observations(
+        vio, np.array(frame_ns, np.int64), measured, str(segmenter.path), timings, dropped
+    )
 
 
 def _run_with_masks(
@@ -452,4 +463,16 @@ def reconstruct(
         segmenter_path=obs.segmenter_path,
         predictor_path=str(predictor.path),
         timings_s=timings,
+        feet_dropped=dict(sorted(obs.feet_dropped.items())),
+        unreliable=vio.unreliable + _too_few_feet(measured, cfg.pipeline.min_foot_seen_fraction),
     )
+
+
+def _too_few_feet(measured: np.ndarray, min_fraction: float) -> list[str]:
+    """A reason to distrust the result when a foot was measured in fewer than
+    ``min_fraction`` of the frames (``measured`` (n, 2, 3), NaN where not seen)."""
+    seen = np.mean(np.isfinite(measured[:, :, 0]), axis=0)
+    low = [f"{side} {100 * f:.0f} %" for side, f in zip(SIDES, seen, strict=True)]
+    if np.all(seen >= min_fraction):
+        return []
+    return [f"feet measured in too few frames ({', '.join(low)}; need {100 * min_fraction:.0f} %)"]

@@ -113,8 +113,8 @@ def result_summary(r: InferResult, session_facts: dict[str, object]) -> dict[str
     """The facts ``summary.json`` holds (also the report's header)."""
     seen = r.foot_measured.mean(axis=0)
     return {
-        "reliable": not r.vio.unreliable,
-        "unreliable_reasons": list(r.vio.unreliable),
+        "reliable": not r.unreliable,
+        "unreliable_reasons": list(r.unreliable),
         "session": session_facts,
         "frames": int(len(r.t_s)),
         "duration_s": float(r.t_s[-1] - r.t_s[0]) if len(r.t_s) > 1 else 0.0,
@@ -135,6 +135,7 @@ def result_summary(r: InferResult, session_facts: dict[str, object]) -> dict[str
             "spread_rot_rad": r.extrinsic.spread_rot_rad,
         },
         "feet_measured_fraction": {s: float(v) for s, v in zip(SIDES, seen, strict=True)},
+        "feet_dropped": dict(r.feet_dropped),
         "seconds": r.timings_s,
     }
 

@@ -16,7 +16,11 @@ treated as background) and the aligned depth image into one :class:`FootDetectio
    surface and is dropped. Pixels without depth stay (the D455 has no depth closer than ~0.4 m
    and on dark shoes). A foot whose mid point lies farther than ``max_distance_m`` from the
    camera along the floor (about one leg length; needs gravity or a floor) is something on the
-   floor ahead, not a foot, and is dropped before the sides are assigned.
+   floor ahead, not a foot, and is dropped before the sides are assigned. So is a blob whose
+   area at its depth (``z² / (f_x f_y)`` per pixel; pixels without depth at the blob's median
+   depth) is outside ``min_area_m2``–``max_area_m2``: not a shoe's size. With ``dropped``
+   (a Counter), every blob dropped for what it is, not for its pixel count, is counted by
+   reason (:data:`DROP_REASONS`).
 2. **Keypoints** (eq. 4.1): with ``S_f`` the blob's pixels and ``a`` the image axis
    ``keypoint_axis`` (``"u"`` as in the thesis, whose camera had the walking direction along
    ``u``; ``"v"``, the default, for an upright camera pitched down, where forward is up in the
@@ -63,6 +67,7 @@ treated as background) and the aligned depth image into one :class:`FootDetectio
 from __future__ import annotations
 
 import logging
+from collections import Counter
 from typing import TypeAlias
 
 import cv2
@@ -78,6 +83,7 @@ from gaitnet.segmentation.hha import find_floor
 log = logging.getLogger(__name__)
 
 __all__ = [
+    "DROP_REASONS",
     "KEYPOINT_NAMES",
     "FootDetection",
     "FootKeypointParams",
@@ -149,15 +155,19 @@ def _point(
     return _ray(K, *uv) * float(np.median(window))
 
 
+#: Why a foot blob is dropped (the keys of ``foot_keypoints``'s ``dropped`` counter).
+DROP_REASONS = ("above the floor", "not one surface", "not a shoe's size", "beyond leg reach")
+
+
 def _filter_blob(
     mask: np.ndarray, z: np.ndarray, height: np.ndarray | None, p: FootKeypointParams
-) -> np.ndarray | None:
-    """The blob after the depth checks, or None when it is dropped."""
+) -> np.ndarray | str:
+    """The blob after the depth checks, or the reason it is dropped."""
     if height is not None:
         h = height[mask]
         known = np.isfinite(h)
         if known.sum() >= p.min_depth_pixels and np.median(h[known]) > p.max_foot_height_m:
-            return None
+            return DROP_REASONS[0]
         mask = mask & ~(np.isfinite(height) & (height < p.min_foot_height_m))
     d = z[mask]
     d = d[d > 0]
@@ -165,9 +175,19 @@ def _filter_blob(
         med = float(np.median(d))
         consistent = np.abs(d - med) <= p.max_depth_dev_m
         if consistent.mean() < p.min_consistent_fraction:
-            return None
+            return DROP_REASONS[1]
         mask = mask & ~((z > 0) & (np.abs(z - med) > p.max_depth_dev_m))
     return mask
+
+
+def _area_m2(mask: np.ndarray, z: np.ndarray, K: np.ndarray) -> float | None:
+    """The blob's area at its depth [m²] (module docstring); None without any depth."""
+    d = z[mask]
+    valid = d[d > 0]
+    if valid.size == 0:
+        return None
+    d = np.where(d > 0, d, float(np.median(valid)))
+    return float(np.sum(d.astype(np.float64) ** 2) / (K[0, 0] * K[1, 1]))
 
 
 _Box: TypeAlias = tuple[slice, slice]  # rows, columns of a bounding box
@@ -237,14 +257,17 @@ def foot_keypoints(
     *,
     gravity_C: np.ndarray | None = None,
     plane: FloorPlane | None = None,
+    dropped: Counter | None = None,
 ) -> list[FootDetection]:
     """The feet of one frame, largest first (module docstring).
 
     ``labels`` (H, W) integer label map, ``depth_m`` (H, W) float metres (0 / non-finite =
     invalid), ``K`` the camera matrix, ``gravity_C`` unit gravity (pointing down) in the camera
-    frame if known, ``plane`` the floor if known. Bad arrays raise
+    frame if known, ``plane`` the floor if known; ``dropped`` counts the blobs dropped as no
+    foot, by reason (:data:`DROP_REASONS`). Bad arrays raise
     :class:`~gaitnet.errors.InputError`.
     """
+    dropped = Counter() if dropped is None else dropped
     p = params or FootKeypointParams()
     labels, z, K = _check(labels, depth_m, K)
     H, W = labels.shape
@@ -263,14 +286,22 @@ def foot_keypoints(
         z_box, origin = z[box], (box[1].start, box[0].start)
         height = height_map(z_box, K, plane, origin) if plane is not None else None
         mask = _filter_blob(blob, z_box, height, p)
-        if mask is None or mask.sum() < min_area:
+        if isinstance(mask, str):
+            dropped[mask] += 1
+            continue
+        if mask.sum() < min_area:
             continue
         for piece in _split_merged(mask, z_box, K, left, p.split_width_m, min_area, origin):
             part = np.zeros((H, W), bool)
             part[box] = piece
             px = _keypoint_pixels(piece, p, origin)
             pts = {name: _point(z, part, K, px[name], p) for name in KEYPOINT_NAMES}
+            area = _area_m2(piece, z_box, K)
+            if area is not None and not p.min_area_m2 <= area <= p.max_area_m2:
+                dropped[DROP_REASONS[2]] += 1
+                continue
             if _beyond_reach(K, px["mid"], pts["mid"], plane, up, p.max_distance_m):
+                dropped[DROP_REASONS[3]] += 1
                 continue
             lateral = _lateral(K, px["mid"], pts["mid"], plane, left) - p.lateral_offset_m
             feet.append(FootDetection("unknown", px, pts, int(part.sum()), lateral, part))
