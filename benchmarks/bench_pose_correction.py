@@ -277,9 +277,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--lbfgs-frames", type=int, default=40, help="frames for the slow baseline")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--clean", action="store_true", help="noise-free measurements, no outliers")
-    ap.add_argument(
-        "--model", type=Path, default=Path("models/predictor/dctgcn_synthwalk_small.onnx")
-    )
+    ap.add_argument("--model", type=Path, default=Path("models/predictor/dctgcn_walk_small.onnx"))
     args = ap.parse_args(argv)
     torch.set_num_threads(1)
     for k, session in enumerate(args.sessions):

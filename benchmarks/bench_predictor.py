@@ -4,7 +4,7 @@ Runs the ONNX model on one window at a time (batch 1, the pipeline's per-frame c
 ``intra_op_num_threads = 1`` and prints the median and 90th percentile in ms/window, plus the
 per-window time at batch 32 (offline use).
 
-    python benchmarks/bench_predictor.py models/predictor/dctgcn_synthwalk_small.onnx
+    python benchmarks/bench_predictor.py models/predictor/dctgcn_walk_small.onnx
 """
 
 from __future__ import annotations

@@ -9,9 +9,9 @@ folder of AMASS-format clips (``--amass-root``: read as a user's AMASS files wit
 loader, every clip evaluated):
 
     python benchmarks/bench_predictor_motion.py --prepared data/cache/synthwalk_mix.npz \\
-        --split test --model gcn=models/predictor/dctgcn_synthwalk_small.onnx
+        --split test --model gcn=models/predictor/dctgcn_walk_small.onnx
     python benchmarks/bench_predictor_motion.py --amass-root /path/to/AMASS --include walk \\
-        --model gcn=models/predictor/dctgcn_synthwalk_small.onnx --json out.json
+        --model gcn=models/predictor/dctgcn_walk_small.onnx --json out.json
 
 MPJPE on one evaluation skeleton (the built-in one of ``--skeleton-height``, as
 ``train/predictor.py``'s ``eval.json``), predicted and true poses sharing the true translation.

@@ -20,7 +20,7 @@ from onnx import TensorProto, helper
 from gaitnet.errors import InputError
 from gaitnet.motion.onnx_runtime import OnnxInputError, OnnxPredictor
 
-MODEL = Path(__file__).parents[1] / "models" / "predictor" / "dctgcn_synthwalk_small.onnx"
+MODEL = Path(__file__).parents[1] / "models" / "predictor" / "dctgcn_walk_small.onnx"
 pytestmark = [
     pytest.mark.filterwarnings("error::RuntimeWarning"),
     pytest.mark.filterwarnings("error::UserWarning"),

@@ -53,11 +53,12 @@ def test_a_simulated_walk_passes_and_each_fault_is_named(tiny_sim_session: Path)
     assert _scene(tiny_sim_session, cfg) == []
     imu = open_session(tiny_sim_session).imu
     up = standing_up(imu, int(open_session(tiny_sim_session).frame_times_ns[0]), cfg.init)
-    (upside_down,) = _scene(tiny_sim_session, cfg, up=-up)
+    pitch, upside_down = _scene(tiny_sim_session, cfg, up=-up)
+    assert pitch.startswith("the camera looks -7")  # looking up: the pitch is named too
     assert float(re.search(r"is (\d+)° from", upside_down).group(1)) > 170
     assert "T_CfromI" in upside_down
     turned = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]) @ up
-    assert "T_CfromI" in _scene(tiny_sim_session, cfg, up=turned)[0]
+    assert any("T_CfromI" in p for p in _scene(tiny_sim_session, cfg, up=turned))
     late = ImuSamples(imu.t_ns + 100_000_000_000, imu.accel, imu.gyro)
     assert _scene(tiny_sim_session, cfg, imu=late)[0].startswith("the IMU covers 0 % of the")
     half = len(imu) // 2
@@ -80,6 +81,8 @@ def test_a_simulated_walk_passes_and_each_fault_is_named(tiny_sim_session: Path)
         ("scene.below_floor_m=-0.0", "below the floor plane"),
         ("scene.min_valid_depth=1.0", "pixels have depth"),
         ("scene.min_imu_coverage=1.0", None),  # every frame is covered: still passes
+        ("scene.max_pitch_deg=60", "below the horizon"),  # the simulated mount: 70°
+        ("scene.min_pitch_deg=80", "below the horizon"),
     ],
 )
 def test_every_threshold_acts(tiny_sim_session: Path, override: str, needle: str | None) -> None:
@@ -205,3 +208,22 @@ def test_a_real_office_without_a_walker_is_refused(tmp_path: Path, up_axis: int)
     cfg = VioConfig()
     with pytest.raises(SceneError, match="does not show what a waist-worn camera sees"):
         screen_session(open_session(tmp_path / "office"), cfg.scene, cfg.init, cfg.floor, 3)
+
+
+def test_scale_says_when_it_rests_on_depth_alone() -> None:
+    from collections import Counter
+
+    from gaitnet.vio.report import SCALE_FROM_DEPTH, SCALE_FROM_SHEETS, scale_source
+    from gaitnet.vio.result import VioResult
+
+    poses = np.tile(np.eye(4), (2, 1, 1))
+    result = VioResult(
+        t_s=np.array([0.0, 0.1]), T_WfromI_filter=poses, T_WfromC_filter=poses,
+        T_WfromC_imu_only=poses, T_WfromI_smoothed=None, T_WfromC_smoothed=None,
+        stance_feet=[], strides=[], initialisation="gravity_floor", initialisation_note="",
+    )  # fmt: skip
+    assert scale_source(result) == SCALE_FROM_DEPTH and "no AprilTag sheet" in SCALE_FROM_DEPTH
+    result.used = Counter(tag=3)  # a sheet seen later, at the end of the walk
+    assert scale_source(result) == SCALE_FROM_SHEETS
+    result.used, result.initialisation = Counter(), "apriltag"
+    assert scale_source(result) == SCALE_FROM_SHEETS

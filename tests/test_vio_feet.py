@@ -740,3 +740,23 @@ def test_a_stance_reopened_behind_another_closed_one() -> None:
     (out,) = trk.update(0.6, [b], heading_W=np.array([1.0, 0.0]))
     assert out is not None and not out.is_new
     assert len(trk.finish()) == 2
+
+
+def test_camera_forward_holds_at_every_pitch() -> None:
+    """The heading the stance tracker sides feet with: the optical axis alone has no horizontal
+    part at 90° and flips past it (sway at 89°); z − y points along the walk at every pitch from
+    horizontal to beyond straight down, with a length of at least 0.7."""
+    from gaitnet.geometry import so3_exp
+    from gaitnet.vio.run import camera_forward_W
+
+    level = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])  # z_C along +x
+    for pitch in (0.0, 45.0, 70.0, 86.0, 89.0, 90.0, 92.0, 100.0):
+        for yaw in (0.0, 2.0):
+            R = so3_exp([0.0, 0.0, np.radians(yaw)]) @ so3_exp([0.0, np.radians(pitch), 0.0])
+            T = np.eye(4)
+            T[:3, :3] = R @ level
+            f = camera_forward_W(T)
+            assert f[0] > 0.7 and abs(np.arctan2(f[1], f[0]) - np.radians(yaw)) < 1e-9, pitch
+    past = np.eye(4)
+    past[:3, :3] = so3_exp([0.0, np.radians(92.0), 0.0]) @ level
+    assert past[0, 2] < 0  # the optical axis alone would point backwards

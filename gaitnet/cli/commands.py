@@ -166,7 +166,7 @@ def _cmd_vio(args: argparse.Namespace) -> int:
     from gaitnet.io import open_session
     from gaitnet.io.atomic import check_output_folder
     from gaitnet.vio.config import VioConfig
-    from gaitnet.vio.report import summary, write_result
+    from gaitnet.vio.report import SCALE_FROM_SHEETS, summary, write_result
     from gaitnet.vio.run import run_vio
 
     forced = ["scene.refuse=false"] if args.force else []
@@ -184,6 +184,8 @@ def _cmd_vio(args: argparse.Namespace) -> int:
     if result.unreliable:
         print(f"UNRELIABLE (--force): {'; '.join(result.unreliable)}")
     print(f"initialisation: {result.initialisation_note}")
+    if info["scale"] != SCALE_FROM_SHEETS:
+        print(f"warning: scale from {info['scale']}")
     if result.smoother.get("ran"):
         print(f"smoother: {result.smoother['iterations']} Gauss–Newton iterations (sec. 3.5)")
     elif result.smoother:
@@ -261,6 +263,7 @@ def _cmd_infer(args: argparse.Namespace) -> int:
     from gaitnet.io.atomic import StagedFolder, check_output_folder
     from gaitnet.io.images import encode_png
     from gaitnet.pipeline.config import InferConfig
+    from gaitnet.vio.report import SCALE_FROM_SHEETS, scale_source
 
     forced = ["vio.scene.refuse=false"] if args.force else []
     cfg = load_config(InferConfig, args.config, [*args.overrides, *forced])
@@ -319,6 +322,8 @@ def _cmd_infer(args: argparse.Namespace) -> int:
     seen = result.foot_measured.mean(axis=0)
     if result.unreliable:
         print(f"UNRELIABLE: {'; '.join(result.unreliable)}")
+    if scale_source(result.vio) != SCALE_FROM_SHEETS:
+        print(f"warning: scale from {scale_source(result.vio)}")
     print(
         f"{n} frames ({result.t_s[-1] - result.t_s[0]:.1f} s) in {wall:.1f} s "
         f"({n / wall:.1f} frames/s): "

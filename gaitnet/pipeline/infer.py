@@ -84,7 +84,7 @@ __all__ = [
 Progress = Callable[[Iterable, int], Iterable]
 SIDES = ("left", "right")
 
-DEFAULT_PREDICTOR = "dctgcn_synthwalk_small.onnx"
+DEFAULT_PREDICTOR = "dctgcn_walk_small.onnx"
 """File name of the committed small motion predictor in the repository's ``models/predictor/``."""
 
 

@@ -52,6 +52,7 @@ from gaitnet.pipeline.plots import (
 )
 from gaitnet.pipeline.pose_types import R_PfromSMPL
 from gaitnet.vio.gait import STRIDE_COLUMNS
+from gaitnet.vio.report import scale_source
 
 __all__ = ["result_summary", "write_infer_files"]
 
@@ -129,6 +130,7 @@ def result_summary(r: InferResult, session_facts: dict[str, object]) -> dict[str
             "initialisation": r.vio.initialisation,
             "note": r.vio.initialisation_note,
         },
+        "scale": scale_source(r.vio),
         "extrinsic": {
             "T_PfromC": r.extrinsic.T_PfromC.tolist(),
             "spread_pos_m": r.extrinsic.spread_pos_m,
@@ -213,6 +215,7 @@ def _write_report(
         "frames": len(r.t_s),
         "body height [m]": round(r.subject_height_m, 2),
         "world frame": _world_frame_text(r.vio.initialisation),
+        "scale from": scale_source(r.vio),
         "models": f"{Path(r.segmenter_path).name}, {Path(r.predictor_path).name}",
         "software": facts.get("software", ""),
     }

@@ -103,6 +103,16 @@ def _T_WfromI(state: FilterState) -> np.ndarray:
     return make_T(state.imu.R_WfromI, state.imu.p_IinW)
 
 
+def camera_forward_W(T_WfromC: np.ndarray) -> np.ndarray:
+    """The camera's forward on the floor (world xy, not unit): the horizontal part of its
+    optical axis plus its image's up (``z_C − y_C``). For a camera pitched down by θ without
+    roll that is ``cos θ + sin θ ≥ 1`` times the walking direction at every pitch from
+    horizontal to straight down, where the optical axis alone has almost no horizontal part
+    and flips with the body's sway (at 89° it swapped the sides of stance feet)."""
+    R = np.asarray(T_WfromC, dtype=np.float64)[:3, :3]
+    return R[:2, 2] - R[:2, 1]
+
+
 def _frames(source: SessionSource, progress: Progress | None) -> Iterator[Frame]:
     it: Iterable = source.frames()
     if progress is not None:
@@ -304,7 +314,7 @@ def run_vio(
             assignments = tracker.update(
                 t,
                 [p[:2] for p in p_W],
-                heading_W=T_WfromC[:3, 2],
+                heading_W=camera_forward_W(T_WfromC),
                 p_CinW=T_WfromC[:3, 3],
                 weak=[c.weak for c in candidates],
                 segmented=[c.segmented for c in candidates],

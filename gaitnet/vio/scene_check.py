@@ -9,6 +9,11 @@ is wrong, each as one short phrase:
   last sample, and not inside a gap longer than ``max_imu_gap_s``) must be at least
   ``min_imu_coverage``. Frames outside the stream's span are skipped by the filter (a warning
   says how many) when the rest is covered.
+- **Pitch.** The optical axis points ``min_pitch_deg``–``max_pitch_deg`` below the horizon
+  (the accelerometer's up): flatter, the feet leave the view (45°: no stride found on a
+  simulated walk); steeper, the camera looks straight down at its own body and the feet's
+  sides are no longer told apart (89°: left and right swapped on 2 of 4 simulated walks; 80–88°:
+  right on 8 of 8).
 - **Depth.** At least ``min_valid_depth`` of the pixels of the first frames have depth.
 - **A floor along gravity.** Up is the accelerometer's mean specific force over the standing
   window (:func:`gaitnet.vio.initialise.standing_up`) rotated into the camera by ``T_CfromI``;
@@ -64,6 +69,8 @@ class SceneParams:
 
     refuse: bool = True
     n_frames: int = 3
+    min_pitch_deg: float = 50.0
+    max_pitch_deg: float = 86.0
     min_imu_coverage: float = 0.9
     max_imu_gap_s: float = 0.1
     min_valid_depth: float = 0.3
@@ -75,6 +82,8 @@ class SceneParams:
 
     def __post_init__(self) -> None:
         check_int_range("scene.n_frames", self.n_frames, 1, 1000)
+        check_range("scene.min_pitch_deg", self.min_pitch_deg, -90.0, 90.0)
+        check_range("scene.max_pitch_deg", self.max_pitch_deg, self.min_pitch_deg, 90.0)
         check_range("scene.min_imu_coverage", self.min_imu_coverage, 0.0, 1.0)
         check_range("scene.max_imu_gap_s", self.max_imu_gap_s, 1e-3, 10.0)
         check_range("scene.min_valid_depth", self.min_valid_depth, 0.0, 1.0)
@@ -171,6 +180,13 @@ def check_scene(
             f"{frame_times_ns[0] * 1e-9:.2f}–{frame_times_ns[-1] * 1e-9:.2f} s)"
         )
     up_C = calib.T_CfromI[:3, :3] @ up_I
+    pitch = float(np.degrees(np.arcsin(np.clip(-up_C[2], -1.0, 1.0))))
+    if not params.min_pitch_deg <= pitch <= params.max_pitch_deg:
+        problems.append(
+            f"the camera looks {pitch:.0f}° below the horizon (the feet are measured at "
+            f"{params.min_pitch_deg:g}–{params.max_pitch_deg:g}°: flatter they leave the view, "
+            "steeper their sides are not told apart)"
+        )
     results = [
         _frame_problems(f, calib.color.K, up_C, params, floor) for f in frames[: params.n_frames]
     ]
