@@ -25,7 +25,7 @@ from gaitnet.segmentation.onnx_runtime import (
     export_segmenter_onnx,
     network_input,
 )
-from gaitnet.segmentation.postprocess import foot_keypoints, kept_feet_labels
+from gaitnet.segmentation.postprocess import DROP_REASONS, foot_keypoints, kept_feet_labels
 from gaitnet.segmentation.segment_session import KEYPOINT_COLUMNS, accelerometer_gravity_C
 from gaitnet.segmentation.segmenter_net import build_segmenter
 
@@ -103,6 +103,7 @@ def test_segment_matches_a_per_frame_computation(
     assert summary["frames"] == len(session)
     assert summary["arch"] == "fusion"
     assert sum(summary["label_fractions"].values()) == pytest.approx(1.0)
+    assert set(summary["feet_dropped"]) <= set(DROP_REASONS)
     assert (out / "contact_sheet.png").stat().st_size > 0
     # the evaluation reads these label maps against the session's ground truth
     assert main(["evaluate", str(out), "--session", str(tiny_sim_session)]) == 0

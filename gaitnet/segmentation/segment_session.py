@@ -15,7 +15,9 @@ when complete (:func:`gaitnet.io.atomic.staged_folder`):
   network's own arg-max with :attr:`SegmentOptions.raw_labels`;
 - ``keypoints.csv``: one row per frame, foot and keypoint (:data:`KEYPOINT_COLUMNS`);
 - ``contact_sheet.png``: evenly spaced frames, RGB with the labels laid over it | label map;
-- ``summary.json``: model, frames, feet seen, where the time went.
+- ``summary.json``: model, frames, feet seen, the foot blobs dropped as no foot by reason
+  (``feet_dropped``: :data:`gaitnet.segmentation.postprocess.DROP_REASONS`), where the time
+  went.
 
 A session whose depth is not aligned to colour (``depth_aligned_to_color: false``) is refused
 before anything is written (:func:`gaitnet.io.types.require_depth_aligned`): the keypoints read
@@ -33,6 +35,7 @@ import io
 import json
 import logging
 import time
+from collections import Counter
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -165,6 +168,7 @@ def segment_session(
     captions: list[str] = []
     with_foot = 0
     no_gravity = 0
+    dropped: Counter = Counter()
     with staged_folder(out_dir, overwrite) as stage:
         (stage / "labels").mkdir()
         frames: Iterable = session.frames()
@@ -184,8 +188,9 @@ def segment_session(
             labels = segmenter.labels(frame.rgb, hha)
             t2 = time.perf_counter()
             feet = foot_keypoints(
-                labels, frame.depth_m, K, keypoint_params, gravity_C=gravity, plane=plane
-            )
+                labels, frame.depth_m, K, keypoint_params, gravity_C=gravity, plane=plane,
+                dropped=dropped,
+            )  # fmt: skip
             if midline.collecting:
                 midline.add(pair_midpoint(feet, keypoint_params), up_C=up)
                 if not midline.collecting:
@@ -244,6 +249,7 @@ def segment_session(
             "arch": segmenter.arch,
             "frames": n,
             "frames_with_foot": with_foot,
+            "feet_dropped": dict(sorted(dropped.items())),
             "frames_without_gravity": no_gravity,
             "label_fractions": fractions,
             "hha": asdict(hha_params),
