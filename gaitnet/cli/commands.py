@@ -4,11 +4,15 @@ report (the parser is in :mod:`gaitnet.cli`)."""
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 import numpy as np
 from tqdm import tqdm
 
 from gaitnet.cli.arguments import PROG, UsageError
+
+if TYPE_CHECKING:  # the commands import their stages lazily, to start fast
+    from gaitnet.vio.result import VioResult
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
@@ -161,12 +165,23 @@ def _strides_matched(matched: dict[str, int], counts: dict[str, int]) -> str:
     return f"{true} true strides matched; found but unmatched: {found}"
 
 
+def _print_trust(unreliable: list[str], vio: VioResult) -> None:
+    """What ``gaitnet vio`` and ``gaitnet infer`` print before their figures: why the result is
+    unreliable (``UNRELIABLE: …``) and a warning when its lengths rest on depth alone."""
+    from gaitnet.vio.report import SCALE_FROM_SHEETS, scale_source
+
+    if unreliable:
+        print(f"UNRELIABLE: {'; '.join(unreliable)}")
+    if scale_source(vio) != SCALE_FROM_SHEETS:
+        print(f"warning: scale from {scale_source(vio)}")
+
+
 def _cmd_vio(args: argparse.Namespace) -> int:
     from gaitnet.config import dump_config, load_config
     from gaitnet.io import open_session
     from gaitnet.io.atomic import check_output_folder
     from gaitnet.vio.config import VioConfig
-    from gaitnet.vio.report import SCALE_FROM_SHEETS, summary, write_result
+    from gaitnet.vio.report import summary, write_result
     from gaitnet.vio.run import run_vio
 
     forced = ["scene.refuse=false"] if args.force else []
@@ -181,11 +196,8 @@ def _cmd_vio(args: argparse.Namespace) -> int:
     out = write_result(result, args.out, dump_config(cfg), overwrite=args.overwrite)
     info = summary(result)
     gait = info["gait"]
-    if result.unreliable:
-        print(f"UNRELIABLE (--force): {'; '.join(result.unreliable)}")
+    _print_trust(result.unreliable, result)
     print(f"initialisation: {result.initialisation_note}")
-    if info["scale"] != SCALE_FROM_SHEETS:
-        print(f"warning: scale from {info['scale']}")
     if result.smoother.get("ran"):
         print(f"smoother: {result.smoother['iterations']} Gauss–Newton iterations (sec. 3.5)")
     elif result.smoother:
@@ -263,7 +275,6 @@ def _cmd_infer(args: argparse.Namespace) -> int:
     from gaitnet.io.atomic import StagedFolder, check_output_folder
     from gaitnet.io.images import encode_png
     from gaitnet.pipeline.config import InferConfig
-    from gaitnet.vio.report import SCALE_FROM_SHEETS, scale_source
 
     forced = ["vio.scene.refuse=false"] if args.force else []
     cfg = load_config(InferConfig, args.config, [*args.overrides, *forced])
@@ -320,10 +331,7 @@ def _cmd_infer(args: argparse.Namespace) -> int:
         raise
     n = len(result.t_s)
     seen = result.foot_measured.mean(axis=0)
-    if result.unreliable:
-        print(f"UNRELIABLE: {'; '.join(result.unreliable)}")
-    if scale_source(result.vio) != SCALE_FROM_SHEETS:
-        print(f"warning: scale from {scale_source(result.vio)}")
+    _print_trust(result.unreliable, result.vio)
     print(
         f"{n} frames ({result.t_s[-1] - result.t_s[0]:.1f} s) in {wall:.1f} s "
         f"({n / wall:.1f} frames/s): "
