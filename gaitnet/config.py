@@ -22,6 +22,7 @@ to its outputs. This module imports nothing of gaitnet but its errors.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import re
 import types
@@ -53,7 +54,9 @@ def load_config(cls: type[T], path: str | Path | None, overrides: Sequence[str] 
     dataclasses refuse) is a :class:`ConfigError` with a one-line message naming the file or
     override and the key.
     """
-    source = str(path) if path is not None else "<defaults>"
+    source = (
+        str(path) if path is not None else "command-line overrides" if overrides else "<defaults>"
+    )
     data: dict[str, Any] = {}
     if path is not None:
         data = _read_yaml_with_base(Path(path))
@@ -309,6 +312,11 @@ def _build(cls: type[T], data: Any, source: str, prefix: str) -> T:
                 f"{source}: key '{prefix}{key}' was replaced by '{prefix}{replaced[key]}'"
             )
         if key not in fields:
+            close = difflib.get_close_matches(str(key), list(fields), n=1, cutoff=0.6)
+            if close:
+                raise ConfigError(
+                    f"{source}: unknown key '{prefix}{key}'; did you mean '{prefix}{close[0]}'?"
+                )
             known = ", ".join(sorted(fields))
             raise ConfigError(f"{source}: unknown key '{prefix}{key}' (known keys: {known})")
     kwargs: dict[str, Any] = {}

@@ -79,8 +79,11 @@ def test_convert_bag_to_folder(tmp_path: Path) -> None:
     out = tmp_path / "walk"
     result = run("convert", str(spec.path), str(out))
     assert result.returncode == 0, result.stderr
+    assert "INFO" not in result.stderr  # quiet on success; -v tells what each stage does
     checked = run("check", str(out), "--decode")
     assert checked.returncode == 0 and "frames    4" in checked.stdout
+    verbose = run("-v", "convert", str(spec.path), str(tmp_path / "again"))
+    assert verbose.returncode == 0 and "INFO gaitnet" in verbose.stderr
 
 
 def test_check_garbage_bag_one_line(tmp_path: Path) -> None:

@@ -50,6 +50,18 @@ def test_unknown_key_names_key_and_file(tmp_path: Path) -> None:
         load_config(Example, path)
 
 
+def test_unknown_key_suggests_the_closest_known_one(tmp_path: Path) -> None:
+    """A misspelt key gets "did you mean" with its dotted path; a key like no other lists
+    the known ones; an override names the command line as its source."""
+    path = write(tmp_path / "bad.yaml", "name: x\noptim: {lrr: 1}\n")
+    with pytest.raises(ConfigError, match=r"unknown key 'optim.lrr'; did you mean 'optim.lr'\?$"):
+        load_config(Example, path)
+    with pytest.raises(ConfigError, match=r"unknown key 'optim.zzz' \(known keys: .*lr"):
+        load_config(Example, None, ["name=x", "optim.zzz=1"])
+    with pytest.raises(ConfigError, match=r"^command-line overrides: unknown key 'epoch';"):
+        load_config(Example, None, ["name=x", "epoch=3"])
+
+
 def test_wrong_type_names_key_and_file(tmp_path: Path) -> None:
     path = write(tmp_path / "bad.yaml", "name: x\nepochs: ten\n")
     with pytest.raises(ConfigError, match=r"bad.yaml: key 'epochs' expects int, got 'ten'"):

@@ -102,7 +102,7 @@ def test_labelled_set_png_and_labelme_references_agree(tmp_path: Path) -> None:
 def test_label_errors_name_the_file(tmp_path: Path) -> None:
     res = tmp_path / "res" / "labels"
     _write(res, "1", np.zeros((4, 5), np.uint8))
-    with pytest.raises(SessionError, match="no reference labels"):
+    with pytest.raises(SessionError, match="no ground truth for label maps: no reference labels"):
         evaluate_label_maps(res, tmp_path)
     _write(tmp_path / "ses" / "labels", "2", np.zeros((4, 5), np.uint8))
     with pytest.raises(InputError, match="no label map has a reference"):

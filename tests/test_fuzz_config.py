@@ -132,7 +132,7 @@ BROKEN_OVERRIDES: list[tuple[str, list[str]]] = [
     ("camera.width=99999999999999999999", ["'camera.width'", "64-bit"]),
     ("camera.width=" + "[" * 100 + "]" * 100, ["override 'camera.width=[[[", "levels"]),
     ("gait.speed_mps=*a", ["not valid YAML"]),
-    ("gait.sped_mps=1", ["unknown key 'gait.sped_mps'"]),
+    ("gait.sped_mps=1", ["unknown key 'gait.sped_mps'", "did you mean 'gait.speed_mps'"]),
     ("gait=1", ["'gait' must be a mapping"]),
 ]
 

@@ -97,7 +97,14 @@ def build_parser() -> argparse.ArgumentParser:
         "(traceback), 130/143 interrupted. See docs/cli.md.",
     )
     parser.add_argument("--version", action="version", version=f"gaitnet {__version__}")
-    parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
+    parser.add_argument(
+        "-v",
+        "--verbose",
+        action="count",
+        default=0,
+        help="log what each stage does (-vv: debug messages too); without it stderr shows "
+        "progress bars, warnings and errors only",
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
     p = sub.add_parser(
@@ -358,7 +365,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     name, f"unrecognized arguments: {' '.join(unknown)} (see '{name} --help')"
                 )
             logging.basicConfig(
-                level=logging.DEBUG if args.verbose else logging.INFO,
+                level=(logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)],
                 format="%(levelname)s %(name)s: %(message)s",
             )
             func: Callable[[argparse.Namespace], int] = args.func

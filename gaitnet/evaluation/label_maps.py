@@ -58,7 +58,8 @@ def reference_labels(reference_dir: Path) -> tuple[dict[str, Path], str]:
         if found:
             return found, "labelme"
     raise SessionError(
-        f"{reference_dir}: no reference labels (expected groundtruth/labels/, labels/ or "
+        f"{reference_dir}: no ground truth for label maps: no reference labels (expected "
+        "groundtruth/labels/ of a simulated session, or labelme annotations in labels/ or "
         "images/*.json)"
     )
 
