@@ -11,13 +11,14 @@ from PIL import Image
 from test_gait_events import synthetic_foot
 
 from gaitnet.errors import InputError
-from gaitnet.pipeline.gait_events import detect_events, stances_from_contacts
+from gaitnet.pipeline.gait_events import FootContact, detect_events, stances_from_contacts
 from gaitnet.pipeline.plots import (
     PNG_SIGNATURE,
     foot_trajectories_png,
     gait_cycles,
     gait_phases_png,
     joint_angles_png,
+    stance_spans,
     top_view_png,
     write_png,
 )
@@ -75,6 +76,33 @@ def test_top_view_phases_and_angles(walk, tmp_path) -> None:
     assert _has(_image(png, (1000, 360)), RED)
     write_png(tmp_path / "a.png", png)
     assert (tmp_path / "a.png").read_bytes() == png
+
+
+def _contact(side, ic, to, still_start, still_end) -> FootContact:
+    return FootContact(side, ic, to, still_start, still_end, np.zeros(3))
+
+
+def test_stance_spans_come_from_detected_events_only() -> None:
+    """Known answer: a missed toe off mid-walk ends the stance bar where the foot was last
+    still and leaves the time to the next stance unknown, never stance (the README demo's
+    right foot once showed stance for the whole walk); standing at the start and the end
+    (no IC / TO at the range's edges) is stance."""
+    contacts = [
+        _contact("right", None, None, 0.0, 1.5),  # stood, then its toe off was missed
+        _contact("right", 2.4, 3.3, 2.5, 3.0),
+        _contact("right", 3.6, None, 3.7, 6.0),  # stood to the end
+        _contact("left", None, 1.9, 0.0, 1.6),
+        _contact("left", 2.9, 3.8, 3.0, 3.5),
+        _contact("left", None, None, 4.6, 5.0),  # neither event detected mid-walk
+    ]
+    known, unknown = stance_spans(contacts, "right", 0.0, 6.0)
+    assert known == [(0.0, 1.5), (2.4, 3.3), (3.6, 6.0)]
+    assert unknown == [(1.5, 2.4)]
+    known, unknown = stance_spans(contacts, "left", 0.0, 6.0)
+    assert known == [(0.0, 1.9), (2.9, 3.8), (4.6, 5.0)]
+    assert unknown == [(3.8, 4.6), (5.0, 6.0)]
+    png = _image(gait_phases_png(contacts, 0.0, 6.0), (1000, 240))
+    assert _has(png, RED) and _has(png, GREEN)
 
 
 def test_gait_cycles_known_answer(walk) -> None:

@@ -13,7 +13,8 @@ green (the gait-lab habit, docs/ecosystem.md; the colours of ``gaitnet vio``'s p
 - :func:`joint_angles_png` — hip, knee and ankle angles over the normalised gait cycle (0 % =
   initial contact, 100 % = the next one of the same foot), mean ± SD band per side over the
   cycles, the mean toe off marked;
-- :func:`gait_phases_png` — stance bars per side over time, double support where both overlap.
+- :func:`gait_phases_png` — stance bars per side over time from detected events only (a missed
+  event leaves its phase unknown, hatched), double support where both overlap.
 """
 
 from __future__ import annotations
@@ -252,25 +253,73 @@ def joint_angles_png(
     return _png(fig)
 
 
+#: A stance whose still interval reaches this close [s] to the plotted range's start or end
+#: began before it or ended after it (the subject stood): its missing event is outside.
+EDGE_S = 0.05
+
+Span = tuple[float, float]
+
+
+def stance_spans(
+    contacts: Sequence[FootContact], side: str, t_start_s: float, t_end_s: float
+) -> tuple[list[Span], list[Span]]:
+    """``side``'s stances as ``(start, end)`` [s] from detected events only, and the spans
+    whose phase is unknown. A stance runs from its initial contact to its toe off. Without an
+    initial contact it starts at the range's start when its still interval does (the
+    subject stood), else at the start of its still interval, with the time back to the
+    previous stance's end (or the range's start) unknown; likewise without a toe off."""
+    own = sorted((c for c in contacts if c.side == side), key=lambda c: c.still_start_s)
+    known: list[Span] = []
+    unknown: list[Span] = []
+    for i, c in enumerate(own):
+        start, end = c.initial_contact_s, c.toe_off_s
+        if start is None:
+            start = t_start_s if c.still_start_s <= t_start_s + EDGE_S else c.still_start_s
+            before = _end(own[i - 1]) if i > 0 else t_start_s
+            if start > t_start_s and start > before:
+                unknown.append((before, start))
+        if end is None:
+            end = t_end_s if c.still_end_s >= t_end_s - EDGE_S else c.still_end_s
+            after = _start(own[i + 1]) if i + 1 < len(own) else t_end_s
+            if end < t_end_s and after > end:
+                unknown.append((end, after))
+        if end > start:
+            known.append((start, end))
+    return known, unknown
+
+
+def _start(c: FootContact) -> float:
+    return c.still_start_s if c.initial_contact_s is None else c.initial_contact_s
+
+
+def _end(c: FootContact) -> float:
+    return c.still_end_s if c.toe_off_s is None else c.toe_off_s
+
+
 def gait_phases_png(contacts: Sequence[FootContact], t_start_s: float, t_end_s: float) -> bytes:
-    """Stance of each foot (bars) from ``t_start_s`` to ``t_end_s`` [s]; a stance without an
-    initial contact or toe off runs from the start or to the end (the subject stood)."""
+    """Stance of each foot (bars) from ``t_start_s`` to ``t_end_s`` [s], from detected events
+    only (:func:`stance_spans`): where an event was not detected the phase is drawn as
+    unknown (hatched), never as stance; double support where both feet's stances overlap."""
     if not (np.isfinite(t_start_s) and np.isfinite(t_end_s) and t_end_s > t_start_s):
         raise InputError(f"gait phases: time range {t_start_s}..{t_end_s} s is not increasing")
     fig = _figure(10, 2.4)
     ax = fig.subplots()
     bars = {}
+    any_unknown = False
     for row, side in enumerate(SIDES):
-        spans = [
-            (
-                c.initial_contact_s if c.initial_contact_s is not None else t_start_s,
-                c.toe_off_s if c.toe_off_s is not None else t_end_s,
-            )
-            for c in contacts
-            if c.side == side
-        ]
-        bars[side] = [(a, b - a) for a, b in spans if b > a]
+        known, unknown = stance_spans(contacts, side, t_start_s, t_end_s)
+        bars[side] = [(a, b - a) for a, b in known]
         ax.broken_barh(bars[side], (1 - row + 0.1, 0.8), color=SIDE_COLOURS[side])
+        if unknown:
+            any_unknown = True
+            ax.broken_barh(
+                [(a, b - a) for a, b in unknown],
+                (1 - row + 0.1, 0.8),
+                facecolor="none",
+                edgecolor="0.6",
+                hatch="///",
+                lw=0.5,
+            )
     both = [
         (max(a, c), min(a + w, c + v) - max(a, c))
         for a, w in bars["left"]
@@ -283,4 +332,6 @@ def gait_phases_png(contacts: Sequence[FootContact], t_start_s: float, t_end_s: 
     ax.set_xlim(t_start_s, t_end_s)
     ax.set_xlabel("time [s]")
     ax.grid(True, axis="x", lw=0.3)
+    if any_unknown:
+        ax.set_title("hatched: an event was not detected, the phase is unknown", fontsize=8)
     return _png(fig)
