@@ -555,3 +555,29 @@ def test_the_start_read_where_the_foot_is_seen_again() -> None:
         if p.first and p.side == 0
     ]
     assert first.heel_off_s == pytest.approx(0.6 - SWING_REST_END_LEAD_S)
+
+
+def test_the_foot_rests_at_its_point_through_its_stances_unseen_frames() -> None:
+    """Known answer: the frames of a stance where the segmenter lost the foot (here one frame
+    of the standing start and three of a later rest) are filled with the rest's median
+    measured point; a rest never seen is not placed (its frames, and the swings either side of
+    it, are left to the predictor: the landmark's start, which times the landing, is late
+    for such a foot)."""
+    t = np.arange(150) / FPS
+    measured = np.full((150, 2, 3), np.nan)
+    rests = [(0.0, 0.6, 0.0), (1.2, 1.6, 1.2), (2.4, 2.8, 2.4), (3.6, 4.9, 3.6)]
+    feet = []
+    for i, (t0, t1, x) in enumerate(rests):
+        inside = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
+        if i != 2:
+            measured[inside, 0] = [x + 0.02, 0.09, 0.08]
+        feet.append(_rest("left", t0, t1, x))
+    lost = [int(0.3 * FPS), int(1.3 * FPS), int(1.4 * FPS), int(1.5 * FPS)]
+    measured[lost, 0] = np.nan
+    out = swing_fill(t, measured, feet, H, rest_end_lead_s=0.0)
+    np.testing.assert_allclose(out[lost[0], 0], [0.02, 0.09, 0.08])
+    np.testing.assert_allclose(out[lost[1:], 0], np.tile([1.22, 0.09, 0.08], (3, 1)))
+    third = (t >= 2.4 - 1e-9) & (t <= 2.8 + 1e-9)
+    assert np.isnan(out[third, 0]).all()
+    assert np.isnan(out[(t > 1.6 + 1e-9) & (t < 3.6 - 1e-9), 0]).all()
+    assert np.isfinite(out[(t > 0.6 + 1e-9) & (t < 1.2 - 1e-9), 0]).all()  # a laid swing

@@ -47,6 +47,7 @@ from gaitnet.motion.onnx_runtime import OnnxPredictor
 from gaitnet.motion.skeleton import LowerBodySkeleton, builtin_skeleton, forward_kinematics
 from gaitnet.pipeline.config import REFERENCE_HEIGHT_M, InferConfig
 from gaitnet.pipeline.foot_points import FrameFeet, measure_feet
+from gaitnet.pipeline.foot_sides import reside_measured_feet
 from gaitnet.pipeline.gap_bridge import bridge_gaps, frames_to_bridge
 from gaitnet.pipeline.pelvis_extrinsic import (
     PelvisExtrinsic,
@@ -330,7 +331,10 @@ def reconstruct(
     progress: Callable[[str], Progress] | None = None,
 ) -> InferResult:
     """Steps 3–5 (module docstring) from the observations of :func:`observe`."""
-    vio, measured, t_ns = obs.vio, obs.foot_W, obs.t_ns
+    vio, t_ns = obs.vio, obs.t_ns
+    measured, resided = reside_measured_feet(vio.t_s, obs.foot_W, vio.stance_feet)
+    if resided:
+        log.info("%d measured foot points lay at the other foot's rest: given to it", resided)
     timings = dict(obs.timings_s)
     n = len(vio.t_s)
     T_WfromC = vio.T_WfromC

@@ -66,9 +66,11 @@ class FilterParams:
     diverge) but not the end sheet's correction of the walk's drift, which the filter's
     covariance covers now that it is consistent (docs/vio.md, *Filter consistency*).
     ``foot_std_m``: standard deviation of a measured stance-foot point per axis [m].
-    ``min_foot_observations``: landmarks seen fewer times are not reported. ``end_sheet_std_m``:
-    placement uncertainty of a tag sheet other than the one that initialised the state (the
-    thesis's ε2: the end sheet's distance is tape-measured; a few millimetres).
+    ``min_foot_observations``: landmarks seen fewer times are not reported (the frames its
+    stance track saw the foot before the stance was confirmed, then the accepted updates).
+    ``end_sheet_std_m``: placement uncertainty of a tag sheet other than the one that
+    initialised the state (the thesis's ε2: the end sheet's distance is tape-measured; a few
+    millimetres).
     ``gravity_mps2``: gravity magnitude; 0 takes the accelerometer's mean magnitude while
     standing at the start (it then also absorbs the accelerometer's vertical scale error).
     ``marginalise_after_s``: a landmark not observed for this long [s] leaves the state (its
