@@ -11,6 +11,7 @@ import shutil
 from dataclasses import replace
 from pathlib import Path
 
+import ezc3d
 import numpy as np
 import pytest
 import torch
@@ -20,6 +21,7 @@ from gaitnet.evaluation.evaluate import evaluate_result
 from gaitnet.geometry import so3_exp
 from gaitnet.io import open_session
 from gaitnet.motion.skeleton import builtin_skeleton, forward_kinematics
+from gaitnet.pipeline.c3d_export import c3d_frame_grid
 from gaitnet.pipeline.config import InferConfig, PipelineParams
 from gaitnet.pipeline.foot_points import floor_in_camera
 from gaitnet.pipeline.infer import _contact
@@ -78,6 +80,12 @@ def test_files_agree_with_forward_kinematics(inferred: Path, tiny_sim_session: P
     for name in ("foot_trajectories", "top_view", "joint_angles", "gait_phases"):
         assert (inferred / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (inferred / "gait_strides.csv").read_text().startswith("side,")
+    c3d = ezc3d.c3d(str(inferred / "gait.c3d"))  # the joints and feet of the files above, mm
+    xyz = np.transpose(c3d["data"]["points"][:3], (2, 1, 0)) / 1000.0
+    _, slots, _ = c3d_frame_grid(data["t_ns"] * 1e-9)
+    np.testing.assert_allclose(xyz[slots, :7], data["positions"][:, :7], atol=1e-6)
+    np.testing.assert_allclose(xyz[slots, 7], marker, atol=2e-5)
+    assert c3d["parameters"]["PROCESSING"]["Height"]["value"][0] == pytest.approx(1700.0)
 
 
 def test_evaluate_reads_the_result(inferred: Path, tiny_sim_session: Path, capsys) -> None:

@@ -134,6 +134,8 @@ def test_weak_candidates_make_a_stance_later_and_never_move_a_strong_ones_start(
     out, stances = run([True] * 6)
     assert [o is not None for o in out] == [False, False, False, True, True, True]
     assert len(stances) == 1 and stances[0].t_first == 0.0
+    assert not stances[0].strong  # weak pieces only: its sightings do not count (run_vio)
+    assert run([True, False, True, True, True, True])[1][0].strong
     out, _ = run([True] * 6, StanceParams(weak_confirm_s=0.15))
     assert [o is not None for o in out] == [False] * 5 + [True]
     # a toe first, then the whole foot: confirm_s (0.06 s) counts from the whole foot
@@ -574,6 +576,34 @@ def test_line_sigma_weighs_the_walking_line_against_the_alternation() -> None:
     assert _sides(frames, truth) == [side for side, _ in truth]
     tight = _sides(frames, truth, StanceParams(line_sigma_m=0.0005))
     assert tight[3] == "right"
+
+
+def test_the_feet_standing_side_by_side_place_the_camera_for_a_lone_stance() -> None:
+    """The layout of a mirrored CMU walk whose walking stances were all missed but one: the
+    feet stand 8 cm either side of their middle at the start and the end, the camera 2.5 cm
+    to the right of that middle, and the one right stance found between them lies 5.5 cm right
+    of it, only 3 cm right of the camera's line. The standing pairs give the camera's offset
+    (``standing_overlap_s``), and the lone stance is right; without them (a standing overlap
+    longer than the walk) the alternation labels it left."""
+    cam_y = -0.025
+    stances = [  # (xy, first, last), right standing first
+        (np.array([0.0, -0.08]), 0.0, 1.8),
+        (np.array([0.0, 0.08]), 0.0, 1.57),
+        (np.array([1.33, -0.055]), 2.97, 3.1),
+        (np.array([2.69, -0.094]), 4.17, 6.0),
+        (np.array([2.69, 0.066]), 4.43, 6.0),
+    ]
+    truth = [("right", xy) for xy, _, _ in stances]
+    truth[1], truth[4] = ("left", stances[1][0]), ("left", stances[4][0])
+    frames = []
+    for i in range(int(6.0 * FPS) + 1):
+        t = i / FPS
+        x = float(np.clip((t - 1.6) / 2.7, 0.0, 1.0)) * 2.69 - 0.2
+        cands = [xy for xy, t0, t1 in stances if t0 <= t <= t1]
+        frames.append((t, cands, np.array([1.0, 0.0]), np.array([x, cam_y])))
+    assert _sides(frames, truth) == ["right", "left", "right", "right", "left"]
+    unplaced = _sides(frames, truth, StanceParams(standing_overlap_s=60.0))
+    assert unplaced[2] == "left"
 
 
 def test_step_timing_tells_alternation_and_a_missed_stance_apart() -> None:

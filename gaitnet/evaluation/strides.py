@@ -4,8 +4,8 @@ A stride joins two consecutive stances of the same foot (docs/ecosystem.md). Bot
 CSV tables with a ``side`` column (``left``/``right``), ``stride_length_m`` and the times of the
 two stances the stride joins, in seconds on the session clock:
 
-- a result's ``strides.csv`` (``gaitnet vio``): ``start_s`` and ``end_s``, the first times
-  each of the two stances was seen;
+- a result's ``strides.csv`` (``gaitnet vio``): ``start_s`` and ``end_s``, the times
+  each of the two stances was confirmed (a few frames after the foot was first seen there);
 - the simulator's ``groundtruth/strides.csv``: ``from_flat_start_s`` and ``to_flat_start_s``,
   the starts of the two foot-flat intervals (docs/groundtruth.md).
 

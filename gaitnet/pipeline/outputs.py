@@ -16,6 +16,9 @@
 - ``gait_strides.csv``: every stride's parameters (docs/report.md: lengths and times from the
   filter's strides, stance / swing / double support from the gait events of the foot
   trajectories);
+- ``gait.c3d``: the joint centres and foot points [mm], the Foot Strike / Foot Off events
+  and the subject's height, for the tools of a gait lab
+  (:mod:`gaitnet.pipeline.c3d_export`);
 - ``report.html``: the self-contained gait report (header, time-distance table per side with
   symmetry indices, per-stride table, figures), and the figures as PNG
   (``foot_trajectories.png``, ``top_view.png``, ``joint_angles.png``, ``gait_phases.png``);
@@ -38,7 +41,8 @@ import numpy as np
 from gaitnet.geometry import so3_exp
 from gaitnet.io.trajectory import tum_text
 from gaitnet.motion.skeleton import JOINT_NAMES, SMPL_JOINT_INDICES
-from gaitnet.pipeline.gait_events import detect_events
+from gaitnet.pipeline.c3d_export import write_gait_c3d
+from gaitnet.pipeline.gait_events import FootContact, detect_events
 from gaitnet.pipeline.gait_parameters import stride_parameters, stride_table_csv, summarise
 from gaitnet.pipeline.html_report import write_report
 from gaitnet.pipeline.infer import InferResult
@@ -174,19 +178,26 @@ def write_infer_files(
     )
     stride_rows = [[s.row()[c] for c in STRIDE_COLUMNS] for s in r.vio.strides]
     (stage / "strides.csv").write_text(_csv(list(STRIDE_COLUMNS), stride_rows))
+    feet = {s: r.feet_W[:, i] for i, s in enumerate(SIDES)}
+    contacts = detect_events(r.t_s, feet, r.joints_W[:, :7])
+    write_gait_c3d(stage / "gait.c3d", r.t_s, r.joints_W, r.feet_W, contacts, r.subject_height_m)
     summary = result_summary(r, session_facts)
-    summary["gait"] = _write_report(r, stage, session_facts, angles)
+    summary["gait"] = _write_report(r, stage, session_facts, angles, contacts)
     (stage / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")
     return summary["gait"]  # type: ignore[return-value]
 
 
 def _write_report(
-    r: InferResult, stage: Path, facts: dict[str, object], angles: np.ndarray
+    r: InferResult,
+    stage: Path,
+    facts: dict[str, object],
+    angles: np.ndarray,
+    contacts: list[FootContact],
 ) -> dict[str, object]:
-    """Gait events, per-stride parameters, figures and ``report.html``; the gait summary."""
+    """Per-stride parameters, figures and ``report.html`` from the gait events ``contacts``;
+    the gait summary."""
     feet = {s: r.feet_W[:, i] for i, s in enumerate(SIDES)}
     measured = {s: r.foot_measured[:, i] for i, s in enumerate(SIDES)}
-    contacts = detect_events(r.t_s, feet, r.joints_W[:, :7])
     rows = stride_parameters(r.vio.strides, contacts)
     gait = summarise(rows)
     (stage / "gait_strides.csv").write_text(stride_table_csv(rows))

@@ -6,8 +6,9 @@ foot there too early and too evenly (the true foot rests, rolls over the toes, t
 its peak speed late), which left 8–10 cm errors in those frames (docs/pipeline.md). The filter
 knows more than the frames do: where the foot stood before the gap and where it lands after
 it (two consecutive stance landmarks of that foot, :class:`gaitnet.vio.result.StanceFoot`), and
-when it lands (the next landmark's first frame, at foot flat). Between them the swing of a
-walking foot has a stereotyped shape, which this module lays between the two rests:
+when it lands (the next landmark's first frame, when its stance was confirmed, at foot
+flat). Between them the swing of a walking foot has a stereotyped
+shape, which this module lays between the two rests:
 
     f(t) = p₀ + ρ(τ) (p₁ − p₀) + μ(τ) H n̂ + λ(τ) H ẑ,   τ = clip((t − t_HO) / (t_FF′ − t_HO), 0, 1)
 
@@ -74,10 +75,12 @@ Only frames where the foot is not steadily seen (:func:`gaitnet.pipeline.gap_bri
 between the two landmarks are filled, and, through each landmark's own frames where the foot
 is not steadily seen, the foot rests at that landmark's point (:func:`rest_points`; a landmark
 whose foot was never seen has none: its start, which times the landing, is then late, and
-placing it from the landmark laid swings 0.2–0.4 s late on a CMU walk). A pair of landmarks is skipped when it cannot be one
-stride of one foot (:data:`CYCLE_RANGE_S`, except a foot's first pair, which may start with
-standing of any length and then only needs the typical cycle; :data:`MIN_STRIDE_M`,
-:data:`MAX_STRIDE_M`), when it spans a missed landmark (a stride over :data:`STRIDE_OUTLIER`
+placing it from the landmark laid swings 0.2–0.4 s late on a CMU walk).
+
+A pair of landmarks is skipped when it cannot be one stride of one foot
+(:data:`CYCLE_RANGE_S`, except a foot's first pair, which may start with standing of any
+length and then only needs the typical cycle; :data:`MIN_STRIDE_M`, :data:`MAX_STRIDE_M`),
+when it spans a missed landmark (a stride over :data:`STRIDE_OUTLIER`
 times the typical one, or a cycle longer than the typical one by more than the tolerance, but
 for a foot's first pair), or when either stance has no measured point.
 :func:`gaitnet.pipeline.infer.reconstruct` runs the pose correction a second time with the

@@ -67,7 +67,8 @@ class FilterParams:
     covariance covers now that it is consistent (docs/vio.md, *Filter consistency*).
     ``foot_std_m``: standard deviation of a measured stance-foot point per axis [m].
     ``min_foot_observations``: landmarks seen fewer times are not reported (the frames its
-    stance track saw the foot before the stance was confirmed, then the accepted updates).
+    stance track saw the foot before the stance was confirmed when a whole-enough foot was
+    among them, then the accepted updates).
     ``end_sheet_std_m``: placement uncertainty of a tag sheet other than the one that
     initialised the state (the thesis's ε2: the end sheet's distance is tape-measured; a few
     millimetres).

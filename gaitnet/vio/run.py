@@ -333,8 +333,11 @@ def run_vio(
                     covariance.augment_landmark(state, a.stance_id, aug)
                     # the foot was seen at this point on every frame of its track before
                     # the confirmation too (StanceTracker): a short foot flat (0.14 s on a
-                    # brisk real walk) leaves too few updates after it to be reported
-                    sightings = len(tracker.stances[a.stance_id].obs)
+                    # brisk real walk) leaves too few updates after it to be reported. Not
+                    # for a track of weak pieces only (a toe in push-off seen again after
+                    # its stance ended, on a simulated walk): those need their updates.
+                    stance = tracker.stances[a.stance_id]
+                    sightings = len(stance.obs) if stance.strong else 1
                     landmarks[a.stance_id] = _Landmark(a.side, t, t, n_obs=sightings)
                     result_used["foot_new"] += 1
                     recorder.add_foot(a.stance_id, cand.p_FinC, R3, is_first=True)

@@ -133,6 +133,10 @@ class StanceParams:
     sides costs ``double_support_cost``. Two feet cannot rest on one spot in turn that quickly
     (their centres lie at least a shoe width, ~0.1 m, apart). So are two stances down at the
     same time less than ``assoc_radius_m`` apart (one foot found twice). 0: neither rule."""
+    standing_overlap_s: float = 0.5
+    """Two stances down together this long [s] (no walking double support lasts 0.3 s) are
+    the two feet standing: the midpoint of their offsets from the walking line starts the
+    side labelling (:meth:`StanceTracker._standing_bias`)."""
     same_foot_s: float = 0.2
     """See ``same_foot_m`` [s]: a foot lifted and set down elsewhere swings for 0.35–0.45 s."""
     segmented_radius_m: float = 0.15
@@ -169,6 +173,7 @@ class StanceParams:
             "tie_s",
             "same_foot_s",
             "line_window_s",
+            "standing_overlap_s",
         ):
             check_range(name, getattr(self, name), 0.0, 60.0, " s")
         for name in ("same_side_cost", "double_support_cost"):
@@ -189,8 +194,9 @@ class StanceAssignment:
 @dataclass
 class Stance:
     """One stance: ``xy`` the mean world floor point of its observations, times of the first
-    and last observation, ``side``, and the observations ``(t_s, xy)`` (including the tentative
-    ones before confirmation)."""
+    and last observation, ``side``, the observations ``(t_s, xy)`` (including the tentative
+    ones before confirmation), and ``strong``: whether a whole-enough foot was among them (not
+    only weak candidates, :attr:`gaitnet.vio.feet.FootCandidate.weak`)."""
 
     id: int
     side: str
@@ -199,6 +205,7 @@ class Stance:
     t_last: float
     heading: np.ndarray
     obs: list[tuple[float, np.ndarray]] = field(default_factory=list, repr=False)
+    strong: bool = False
 
     @property
     def n_obs(self) -> int:
@@ -350,6 +357,7 @@ class StanceTracker:
             t_first=tr.obs[0][0],
             t_last=tr.t_last,
             heading=self._heading.copy(),
+            strong=tr.t_strong is not None,
         )
         self._stances.append(tr.stance)
         self._sync(tr)
@@ -506,12 +514,34 @@ class StanceTracker:
         between the feet taken as 0, then, when both sides are present, again with ``b`` the
         midpoint of the two sides' mean offsets from the walking line (module docstring)."""
         d_line = self._line_offsets(stances, path_t, path_xy)
-        labels = self._viterbi(stances, d_line, 0.0)
+        labels = self._viterbi(stances, d_line, self._standing_bias(stances, d_line))
         left = [d for i, s in labels.items() if s == "left" and (d := d_line[i]) is not None]
         right = [d for i, s in labels.items() if s == "right" and (d := d_line[i]) is not None]
         if not left or not right:
             return labels
         return self._viterbi(stances, d_line, 0.5 * (float(np.mean(left)) + float(np.mean(right))))
+
+    def _standing_bias(self, stances: list[Stance], d_line: Mapping[int, float | None]) -> float:
+        """The camera's offset from the line between the feet as the feet standing side by
+        side give it: the median midpoint of the line offsets of two stances down together
+        for at least ``standing_overlap_s`` and at least ``same_foot_m`` apart across the
+        walk (one of each foot); 0 without such a pair. The first labelling uses it: a
+        camera worn 2–3 cm off the feet's middle otherwise puts a lone stance between two
+        missed ones on the wrong side (a CMU walk, mirrored: 0 of 5 strides matched)."""
+        P = self.params
+        mids = []
+        for i, a in enumerate(stances):
+            for b in stances[i + 1 :]:
+                da, db = d_line[a.id], d_line[b.id]
+                together = min(a.t_last, b.t_last) - max(a.t_first, b.t_first)
+                if (
+                    da is not None
+                    and db is not None
+                    and together >= P.standing_overlap_s
+                    and abs(da - db) >= P.same_foot_m
+                ):
+                    mids.append(0.5 * (da + db))
+        return float(np.median(mids)) if mids else 0.0
 
     def _step_time(self, st: list[Stance]) -> float | None:
         """The walk's step time [s]: the median of the gaps between consecutive stances'
