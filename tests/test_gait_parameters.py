@@ -18,6 +18,7 @@ from gaitnet.pipeline.gait_parameters import (
     stride_parameters,
     stride_table_csv,
     summarise,
+    table_cycles,
 )
 from gaitnet.vio.gait import Stance, strides_from_stances
 from gaitnet.vio.gait import summarise as vio_summarise
@@ -135,6 +136,29 @@ def test_missing_events_leave_empty_cells_and_csv() -> None:
     assert tuple(table[0]) == STRIDE_TABLE_COLUMNS and len(table) == len(rows)
     assert {t["stance_pct"] for t in table if t["side"] == "left"} == {""}
     assert set(KEYS) <= set(table[0])
+
+
+def test_table_cycles_are_the_strides_with_stance_and_swing() -> None:
+    """Known answer: the joint-angle figure's cycles are the table's (stance_pct n): every
+    steady stride of the hand walk as (IC, TO, next IC); without the left toe offs, none on
+    the left and the right's unchanged."""
+    stances, contacts = hand_walk(n=3)
+    rows = stride_parameters(strides_from_stances(stances), contacts)
+    cycles = table_cycles(rows)
+    summary = summarise(rows)
+    for side, t0 in (("left", 0.0), ("right", CYCLE / 2)):
+        assert len(cycles[side]) == summary[side]["stance_pct"]["n"] == 2
+        for k, (ic, to, nxt) in enumerate(cycles[side]):
+            assert (ic, to, nxt) == pytest.approx((t0 + CYCLE * k, t0 + CYCLE * k + STANCE,
+                                                   t0 + CYCLE * (k + 1)))  # fmt: skip
+    no_left_to = [
+        FootContact(c.side, c.initial_contact_s, None, c.still_start_s, c.still_end_s, c.position)
+        if c.side == "left"
+        else c
+        for c in contacts
+    ]
+    cycles = table_cycles(stride_parameters(strides_from_stances(stances), no_left_to))
+    assert cycles["left"] == [] and len(cycles["right"]) == 2
 
 
 def test_contacts_far_from_the_stances_are_not_used() -> None:

@@ -119,6 +119,17 @@ def test_angles_without_cycles_still_draw(walk) -> None:
     assert joint_angles_png(t, angles, []).startswith(PNG_SIGNATURE)
 
 
+def test_given_cycles_replace_the_contacts_own(walk) -> None:
+    """The cycles given per side (the report's table's) are drawn, not the contacts':
+    the left's alone draws red and no green; none given draws neither."""
+    t, _, found, angles = walk
+    left = {"left": gait_cycles(found, "left"), "right": []}
+    only_left = _image(joint_angles_png(t, angles, found, left), (1000, 360))
+    assert _has(only_left, RED) and not _has(only_left, GREEN)
+    none = _image(joint_angles_png(t, angles, found, {}), (1000, 360))
+    assert not _has(none, RED) and not _has(none, GREEN)
+
+
 @pytest.mark.parametrize(
     ("call", "match"),
     [

@@ -52,6 +52,7 @@ __all__ = [
     "stride_parameters",
     "stride_table_csv",
     "summarise",
+    "table_cycles",
 ]
 
 #: Every parameter: key (unit as suffix, docs/ecosystem.md), display label, display unit.
@@ -214,6 +215,20 @@ def summarise(rows: Sequence[StrideParameters]) -> dict[str, object]:
                 symmetry[key] = si
     out["symmetry_index_pct"] = symmetry
     out["symmetry_index"] = "Robinson 1987: 2 (R - L) / (R + L) x 100 of the side means"
+    return out
+
+
+def table_cycles(rows: Sequence[StrideParameters]) -> dict[str, list[tuple[float, float, float]]]:
+    """Per side, the gait cycles ``(initial contact, toe off, next initial contact)`` [s] of
+    the steady strides whose stance and swing the table gives (:func:`summarise`'s
+    ``stance_pct`` n): the cycles the joint-angle figure averages."""
+    out: dict[str, list[tuple[float, float, float]]] = {side: [] for side in SIDES}
+    for r in rows:
+        if r.steady and r.values.get("stance_pct") is not None:
+            v = r.values
+            out[r.side].append(
+                (v["initial_contact_s"], v["toe_off_s"], v["next_initial_contact_s"])  # type: ignore[arg-type]
+            )
     return out
 
 

@@ -43,7 +43,12 @@ from gaitnet.io.trajectory import tum_text
 from gaitnet.motion.skeleton import JOINT_NAMES, SMPL_JOINT_INDICES
 from gaitnet.pipeline.c3d_export import write_gait_c3d
 from gaitnet.pipeline.gait_events import FootContact, detect_events
-from gaitnet.pipeline.gait_parameters import stride_parameters, stride_table_csv, summarise
+from gaitnet.pipeline.gait_parameters import (
+    stride_parameters,
+    stride_table_csv,
+    summarise,
+    table_cycles,
+)
 from gaitnet.pipeline.html_report import write_report
 from gaitnet.pipeline.infer import InferResult
 from gaitnet.pipeline.joint_angles import ANGLE_NAMES, sagittal_angles_deg
@@ -207,7 +212,10 @@ def _write_report(
             foot_trajectories_png(r.t_s, feet, measured),
         ),
         ("Walk seen from above", top_view_png(feet, (), contacts, r.vio.T_WfromC[:, :2, 3])),
-        ("Joint angles over the gait cycle (mean ± SD)", joint_angles_png(r.t_s, angles, contacts)),
+        (
+            "Joint angles over the gait cycle (mean ± SD)",
+            joint_angles_png(r.t_s, angles, contacts, table_cycles(rows)),
+        ),
         (
             "Stance and swing over time",
             gait_phases_png(contacts, float(r.t_s[0]), float(r.t_s[-1])),

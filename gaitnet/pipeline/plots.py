@@ -206,12 +206,21 @@ def gait_cycles(contacts: Sequence[FootContact], side: str) -> list[tuple[float,
     return [c for c in cycles if c[2] - c[0] <= 1.5 * median]
 
 
+Cycle = tuple[float, float, float]  # initial contact, toe off, next initial contact [s]
+
+
 def joint_angles_png(
-    t_s: ArrayLike, angles_deg: ArrayLike, contacts: Sequence[FootContact]
+    t_s: ArrayLike,
+    angles_deg: ArrayLike,
+    contacts: Sequence[FootContact],
+    cycles: Mapping[str, Sequence[Cycle]] | None = None,
 ) -> bytes:
     """Hip, knee and ankle angles [deg] over the normalised gait cycle (module docstring):
     ``angles_deg`` (n, 6) at ``t_s``, columns
-    :data:`gaitnet.pipeline.joint_angles.ANGLE_NAMES` (hip L, R, knee L, R, ankle L, R)."""
+    :data:`gaitnet.pipeline.joint_angles.ANGLE_NAMES` (hip L, R, knee L, R, ankle L, R), over
+    ``cycles`` per side when given (``gaitnet infer``: the cycles of the report's table,
+    :func:`gaitnet.pipeline.gait_parameters.table_cycles`, so that the legend's n is the
+    table's), else :func:`gait_cycles` of ``contacts``."""
     t = check_times(t_s)
     a = np.asarray(angles_deg, dtype=float)
     if a.shape != (t.size, len(ANGLE_NAMES)):
@@ -222,21 +231,18 @@ def joint_angles_png(
     axes = fig.subplots(1, 3)
     phase = np.linspace(0.0, 100.0, CYCLE_POINTS)
     for s, side in enumerate(SIDES):
-        cycles = gait_cycles(contacts, side)
+        own = list(cycles.get(side, ())) if cycles is not None else gait_cycles(contacts, side)
         colour = SIDE_COLOURS[side]
         for j, ax in enumerate(axes):
-            if not cycles:
+            if not own:
                 continue
             curves = np.array(
-                [
-                    np.interp(ic + phase / 100 * (nxt - ic), t, a[:, 2 * j + s])
-                    for ic, _, nxt in cycles
-                ]
+                [np.interp(ic + phase / 100 * (nxt - ic), t, a[:, 2 * j + s]) for ic, _, nxt in own]
             )
             mean, sd = curves.mean(axis=0), curves.std(axis=0)
             ax.fill_between(phase, mean - sd, mean + sd, color=colour, alpha=0.2, lw=0)
-            ax.plot(phase, mean, color=colour, lw=1.5, label=f"{side} (n = {len(cycles)})")
-            to = np.mean([100 * (to - ic) / (nxt - ic) for ic, to, nxt in cycles])
+            ax.plot(phase, mean, color=colour, lw=1.5, label=f"{side} (n = {len(own)})")
+            to = np.mean([100 * (to - ic) / (nxt - ic) for ic, to, nxt in own])
             ax.axvline(to, color=colour, lw=0.8, ls="--")
     for ax, title in zip(axes, ("hip flexion", "knee flexion", "ankle dorsiflexion"), strict=True):
         ax.set_title(f"{title} [deg]")
