@@ -36,7 +36,11 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
-import torch  # noqa: E402
+
+try:
+    import torch  # noqa: E402
+except ModuleNotFoundError as exc:  # the core install has no PyTorch
+    raise SystemExit(f"error: {exc.name} is not installed: pip install -e '.[train]'") from None
 
 from gaitnet.geometry import so3_exp, so3_log  # noqa: E402
 from gaitnet.io.trajectory import read_tum  # noqa: E402

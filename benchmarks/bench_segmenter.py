@@ -29,7 +29,11 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-import torch
+
+try:
+    import torch
+except ModuleNotFoundError as exc:  # the core install has no PyTorch
+    raise SystemExit(f"error: {exc.name} is not installed: pip install -e '.[train]'") from None
 
 from gaitnet.segmentation.channels import ARCHS, input_channels
 from gaitnet.segmentation.fcn import OUTPUT_STRIDES, PADDINGS

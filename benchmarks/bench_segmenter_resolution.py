@@ -17,8 +17,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import torch
-from torch.nn import functional as nnf
+
+try:
+    import torch
+    from torch.nn import functional as nnf
+except ModuleNotFoundError as exc:  # the core install has no PyTorch
+    raise SystemExit(f"error: {exc.name} is not installed: pip install -e '.[train]'") from None
 
 from gaitnet.errors import InputError
 from gaitnet.evaluation.segmentation import confusion_matrix, segmentation_scores

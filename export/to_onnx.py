@@ -37,6 +37,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from gaitnet.cli.scripts import missing_train_extra
 from gaitnet.errors import USER_ERRORS, InputError, user_error_message
 from gaitnet.io.atomic import atomic_write_text
 from gaitnet.training.scripts import ScriptParser
@@ -205,8 +206,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the exporter: bad input (gaitnet's errors, ``OSError``) and a failed parity check
-    are one line on stderr and exit status 1; anything else is a bug with a traceback."""
+    """Run the exporter: bad input (gaitnet's errors, ``OSError``), a failed parity check and
+    PyTorch missing (a core install) are one line on stderr and exit status 1; anything else
+    is a bug with a traceback."""
     from gaitnet.io.onnx_export import OnnxParityError  # both models' exports raise it
 
     try:
@@ -217,6 +219,12 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     except OnnxParityError as exc:
         print(f"error: export failed: {user_error_message(exc)}", file=sys.stderr)
+        return 1
+    except ModuleNotFoundError as exc:  # a core install without the train extra
+        message = missing_train_extra(exc)
+        if message is None:
+            raise
+        print(message, file=sys.stderr)
         return 1
 
 

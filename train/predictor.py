@@ -26,8 +26,11 @@ import time
 from pathlib import Path
 from typing import Any
 
-import torch
-from torch.utils.data import DataLoader, DistributedSampler
+try:
+    import torch
+    from torch.utils.data import DataLoader, DistributedSampler
+except ModuleNotFoundError as exc:  # the core install has no PyTorch
+    raise SystemExit(f"error: {exc.name} is not installed: pip install -e '.[train]'") from None
 from tqdm import tqdm
 
 from gaitnet.cli.scripts import run_script
