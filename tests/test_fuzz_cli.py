@@ -43,6 +43,16 @@ CASES: list[tuple[str, list[str], str]] = [
     ("check-unknown-option", ["check", "{session}", "--bogus"], "unrecognized arguments"),
     ("check-extra-arg", ["check", "{session}", "extra"], "unrecognized arguments: extra"),
     ("check-flag-value", ["check", "{session}", "--decode=yes"], "ignored explicit argument"),
+    # tags
+    ("tags-missing-out", ["tags"], "required: --out"),
+    ("tags-suffix", ["tags", "--out", "{tmp}/sheet.gif"], "written as .png or .pdf"),
+    ("tags-out-dir", ["tags", "--out", "{dir}"], "is a folder"),
+    ("tags-rows-zero", ["tags", "--out", "{tmp}/s.png", "--rows", "0"], "rows must be"),
+    ("tags-size-nan", ["tags", "--out", "{tmp}/s.png", "--tag-size-mm", "nan"], "finite"),
+    ("tags-too-big", ["tags", "--out", "{tmp}/s.png", "--paper", "a4"], "do not fit on A4"),
+    ("tags-paper", ["tags", "--out", "{tmp}/s.png", "--paper", "a0"], "invalid choice"),
+    ("tags-ids", ["tags", "--out", "{tmp}/s.png", "--first-id", "580"], "ids 0–586 only"),
+    ("tags-dpi", ["tags", "--out", "{tmp}/s.png", "--dpi", "5"], "dpi 5"),
     # convert
     ("convert-missing-args", ["convert"], "gaitnet convert: error: the following arguments"),
     ("convert-missing-output", ["convert", "{session}"], "required: OUTPUT"),

@@ -56,6 +56,7 @@ from gaitnet.cli.commands import (
     _cmd_segment,
     _cmd_simulate,
     _cmd_simulate_dataset,
+    _cmd_tags,
     _cmd_vio,
 )
 from gaitnet.errors import USER_ERRORS, one_line, user_error_message
@@ -116,6 +117,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("session", metavar="SESSION", help="session folder or RealSense .bag file")
     p.add_argument("--decode", action="store_true", help="decode every frame (slower)")
     p.set_defaults(func=_cmd_check)
+
+    p = sub.add_parser(
+        "tags",
+        help="write a printable sheet of AprilTags (tag36h11) and its session.yaml entry",
+        description="Write a sheet of tag36h11 AprilTags to print at 100 %% (PNG with its dpi, "
+        "or PDF of the paper's size) and print the apriltag_boards entry for session.yaml "
+        "(docs/recording.md).",
+    )
+    p.add_argument("--out", required=True, type=_output_file, help="sheet.png or sheet.pdf")
+    p.add_argument("--rows", type=_integer, default=7, help="tag rows (default 7)")
+    p.add_argument("--cols", type=_integer, default=5, help="tag columns (default 5)")
+    p.add_argument(
+        "--tag-size-mm", type=_finite_float, default=40.0, help="black square side (default 40)"
+    )
+    p.add_argument("--gap-mm", type=_finite_float, default=12.0, help="gap between tags (12)")
+    p.add_argument("--first-id", type=_integer, default=0, help="id of the first tag (0)")
+    p.add_argument("--name", default="start", help="the board's name in session.yaml (start)")
+    p.add_argument(
+        "--paper", choices=("a4", "a3", "letter"), default="a3", help="paper size (default a3)"
+    )
+    p.add_argument("--dpi", type=_integer, default=300, help="print resolution (default 300)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing file")
+    p.set_defaults(func=_cmd_tags)
 
     p = sub.add_parser(
         "convert",

@@ -360,3 +360,57 @@ def _print_gait_summary(gait: dict) -> None:
         si = gait.get("symmetry_index_pct", {}).get(key)
         si_text = "" if si is None else f"{si:+.1f}"
         print(f"{label + ' [' + unit + ']':28s} {cells[0]:>16s} {cells[1]:>16s} {si_text:>7s}")
+
+
+def _cmd_tags(args: argparse.Namespace) -> int:
+    import io
+
+    from PIL import Image
+
+    from gaitnet.io.atomic import atomic_write_bytes
+    from gaitnet.io.types import AprilTagBoard
+    from gaitnet.sim.tag_sheet import printable_sheet
+
+    out = args.out
+    if out.suffix.lower() not in (".png", ".pdf"):
+        raise UsageError(f"{PROG} tags", f"{out}: the sheet is written as .png or .pdf")
+    if out.exists() and not args.overwrite:
+        raise UsageError(f"{PROG} tags", f"{out}: exists (choose another name or add --overwrite)")
+    try:
+        board = AprilTagBoard(
+            name=args.name,
+            family="tag36h11",
+            rows=args.rows,
+            cols=args.cols,
+            tag_size_m=args.tag_size_mm / 1000.0,
+            gap_m=args.gap_mm / 1000.0,
+            first_id=args.first_id,
+            T_WfromBoard=np.eye(4),
+        )
+    except ValueError as exc:  # the sheet's numbers, named as the board checks them
+        raise UsageError(f"{PROG} tags", str(exc)) from None
+    image = Image.fromarray(printable_sheet(board, args.paper, args.dpi))
+    data = io.BytesIO()
+    if out.suffix.lower() == ".pdf":
+        image.save(data, "PDF", resolution=float(args.dpi))
+    else:
+        image.save(data, "PNG", dpi=(args.dpi, args.dpi))
+    atomic_write_bytes(out, data.getvalue())
+    last = board.first_id + board.rows * board.cols - 1
+    print(
+        f"wrote {out}: {board.rows}×{board.cols} tag36h11 tags (ids {board.first_id}–{last}) "
+        f"of {args.tag_size_mm:g} mm on {args.paper.upper()} at {args.dpi} dpi; print it at "
+        f"100 % (no fit to page) and check that a tag's black square measures "
+        f"{args.tag_size_mm:g} mm"
+    )
+    print("for session.yaml (docs/session-format.md; T_WfromBoard: where the sheet lies):")
+    print("apriltag_boards:")
+    print(f"- name: {board.name}")
+    print("  family: tag36h11")
+    print(f"  rows: {board.rows}")
+    print(f"  cols: {board.cols}")
+    print(f"  tag_size_m: {board.tag_size_m:g}")
+    print(f"  gap_m: {board.gap_m:g}")
+    print(f"  first_id: {board.first_id}")
+    print("  T_WfromBoard: [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]")
+    return 0

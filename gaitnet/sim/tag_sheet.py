@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from gaitnet.errors import InputError
 from gaitnet.io.types import AprilTagBoard
 from gaitnet.sim.mipmap import build_pyramid, sample_mipmapped
 
@@ -100,6 +101,46 @@ def _sheet_blackness(board: AprilTagBoard, extent: Extent, tau: float) -> np.nda
         Oy = _overlap(tex_ny, tau, cells_ny, cell)
         ink[r0:r1, c0:c1] += Oy @ _marker_bits(tag_id) @ Ox.T
     return np.clip(ink, 0.0, 1.0)
+
+
+#: Paper sizes [m] (long side, short side) that :func:`printable_sheet` lays a board out on.
+PAPER_SIZES_M = {"a4": (0.297, 0.210), "a3": A3_PAPER_M, "letter": (0.2794, 0.2159)}
+PRINT_MARGIN_M = 0.01  # white paper kept around the tag grid (a quiet zone for detection)
+TAG36H11_IDS = 587  # the family's size (OpenCV's DICT_APRILTAG_36h11)
+
+
+def printable_sheet(board: AprilTagBoard, paper: str = "a4", dpi: int = 300) -> np.ndarray:
+    """``board``'s tags on a page of ``paper`` (:data:`PAPER_SIZES_M`, portrait or landscape as
+    the grid is) at ``dpi``, as seen from above when it lies on the floor in its board frame:
+    a uint8 image (255 paper, 0 ink; each pixel the exact box-filtered ink coverage), to print
+    at 100 %. A grid that does not fit on the page with :data:`PRINT_MARGIN_M` around it raises
+    :class:`~gaitnet.errors.InputError`."""
+    if paper not in PAPER_SIZES_M:
+        raise InputError(f"paper {paper!r}: expected one of {', '.join(PAPER_SIZES_M)}")
+    if not 50 <= dpi <= 2400:
+        raise InputError(f"dpi {dpi}: expected 50–2400")
+    if board.family.replace("_", "").lower() not in ("tag36h11", "apriltag36h11"):
+        raise InputError(f"board {board.name!r}: only tag36h11 is printed, got {board.family!r}")
+    last = board.first_id + board.rows * board.cols - 1
+    if last >= TAG36H11_IDS:
+        raise InputError(
+            f"tag ids {board.first_id}–{last}: tag36h11 has ids 0–{TAG36H11_IDS - 1} only"
+        )
+    s, g = board.tag_size_m, board.gap_m
+    gw = board.cols * s + (board.cols - 1) * g
+    gh = board.rows * s + (board.rows - 1) * g
+    long_, short = PAPER_SIZES_M[paper]
+    pw, ph = (long_, short) if gw >= gh else (short, long_)
+    if gw + 2 * PRINT_MARGIN_M > pw or gh + 2 * PRINT_MARGIN_M > ph:
+        raise InputError(
+            f"{board.rows}×{board.cols} tags of {1000 * s:g} mm with {1000 * g:g} mm gaps are "
+            f"{1000 * gw:.0f} × {1000 * gh:.0f} mm: they do not fit on {paper.upper()} "
+            f"({1000 * pw:.0f} × {1000 * ph:.0f} mm) with {1000 * PRINT_MARGIN_M:g} mm margins"
+        )
+    tau = 0.0254 / dpi
+    extent = ((gw - pw) / 2, (gw + pw) / 2), ((gh - ph) / 2, (gh + ph) / 2)
+    ink = _sheet_blackness(board, extent, tau)
+    return np.round(255.0 * (1.0 - ink)).astype(np.uint8)
 
 
 def _check_board_on_floor(board: AprilTagBoard) -> np.ndarray:
