@@ -125,19 +125,31 @@ def build_parser() -> argparse.ArgumentParser:
         "or PDF of the paper's size) and print the apriltag_boards entry for session.yaml "
         "(docs/recording.md).",
     )
-    p.add_argument("--out", required=True, type=_output_file, help="sheet.png or sheet.pdf")
-    p.add_argument("--rows", type=_integer, default=7, help="tag rows (default 7)")
-    p.add_argument("--cols", type=_integer, default=5, help="tag columns (default 5)")
     p.add_argument(
-        "--tag-size-mm", type=_finite_float, default=40.0, help="black square side (default 40)"
+        "--out", required=True, type=_output_file, metavar="SHEET", help="sheet.png or sheet.pdf"
     )
-    p.add_argument("--gap-mm", type=_finite_float, default=12.0, help="gap between tags (12)")
-    p.add_argument("--first-id", type=_integer, default=0, help="id of the first tag (0)")
-    p.add_argument("--name", default="start", help="the board's name in session.yaml (start)")
+    p.add_argument("--rows", type=_integer, default=7, metavar="R", help="tag rows (default 7)")
+    p.add_argument("--cols", type=_integer, default=5, metavar="C", help="tag columns (5)")
     p.add_argument(
-        "--paper", choices=("a4", "a3", "letter"), default="a3", help="paper size (default a3)"
+        "--tag-size-mm",
+        type=_finite_float,
+        default=40.0,
+        metavar="S",
+        help="black square side [mm] (default 40)",
     )
-    p.add_argument("--dpi", type=_integer, default=300, help="print resolution (default 300)")
+    p.add_argument(
+        "--gap-mm", type=_finite_float, default=12.0, metavar="G", help="gap between tags (12)"
+    )
+    p.add_argument("--first-id", type=_integer, default=0, metavar="I", help="first tag's id (0)")
+    p.add_argument("--name", default="start", metavar="N", help="board name in session.yaml")
+    p.add_argument(
+        "--paper",
+        choices=("a4", "a3", "letter"),
+        default="a3",
+        metavar="P",
+        help="paper size: a3 (default), a4 or letter",
+    )
+    p.add_argument("--dpi", type=_integer, default=300, metavar="D", help="resolution (300)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing file")
     p.set_defaults(func=_cmd_tags)
 
