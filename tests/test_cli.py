@@ -10,6 +10,7 @@ import pytest
 from oneline import assert_one_line_exit
 
 import gaitnet
+from gaitnet.io import open_session
 
 
 def run(*args: str) -> subprocess.CompletedProcess:
@@ -70,6 +71,34 @@ def test_convert_folder_to_folder(tiny_session: Path, tmp_path: Path) -> None:
     assert (out / "imu.csv").read_bytes() == (tiny_session / "imu.csv").read_bytes()
     again = run("convert", str(tiny_session), str(out))
     assert_one_line_exit(again.stderr, again.returncode, "output exists and is not empty")
+
+
+def test_convert_adds_the_sheets_of_a_board_file(tiny_session: Path, tmp_path: Path) -> None:
+    """``convert --board``: the entry ``gaitnet tags`` prints goes into session.yaml (read
+    back as the sheet it describes); a board file that does not parse, a name the session has
+    already, or no file at all is one line naming the file (and the key), and nothing is
+    written."""
+    tags = run("tags", "--out", str(tmp_path / "s.png"), "--paper", "a4", "--rows", "5",
+               "--cols", "3", "--dpi", "60", "--name", "end", "--first-id", "100")  # fmt: skip
+    board = tmp_path / "board.yaml"
+    board.write_text(tags.stdout.split("lies):\n", 1)[1])
+    out = tmp_path / "with-sheet"
+    result = run("convert", str(tiny_session), str(out), "--board", str(board))
+    assert result.returncode == 0, result.stderr
+    before = open_session(tiny_session).calibration.apriltag_boards
+    *kept, sheet = open_session(out).calibration.apriltag_boards
+    assert [b.name for b in kept] == [b.name for b in before]
+    assert (sheet.name, sheet.rows, sheet.cols, sheet.first_id) == ("end", 5, 3, 100)
+    assert sheet.tag_size_m == 0.04
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(board.read_text().replace("cols:", "colls:"))
+    again = run("convert", str(tiny_session), str(tmp_path / "x"), "--board", str(bad))
+    assert_one_line_exit(again.stderr, again.returncode, str(bad), "apriltag_boards[0].colls")
+    twice = run("convert", str(out), str(tmp_path / "y"), "--board", str(board))
+    assert_one_line_exit(twice.stderr, twice.returncode, str(board), "named 'end'")
+    none = run("convert", str(tiny_session), str(tmp_path / "z"), "--board", str(tmp_path / "n"))
+    assert_one_line_exit(none.stderr, none.returncode, str(tmp_path / "n"), "not found")
+    assert not any((tmp_path / d).exists() for d in ("x", "y", "z"))
 
 
 def test_convert_bag_to_folder(tmp_path: Path) -> None:

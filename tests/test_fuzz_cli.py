@@ -63,6 +63,9 @@ CASES: list[tuple[str, list[str], str]] = [
     ("convert-output-below-file", ["convert", "{session}", "{file}/sub"], "{file}"),
     ("convert-output-empty", ["convert", "{session}", ""], "empty path"),
     ("convert-unknown-option", ["convert", "{session}", OUT, "--force"], "unrecognized"),
+    ("convert-board-missing", ["convert", "{session}", OUT, "--board", "{missing}"], "not found"),
+    ("convert-board-dir", ["convert", "{session}", OUT, "--board", "{dir}"], "is not a file"),
+    ("convert-board-bad", ["convert", "{session}", OUT, "--board", "{badyaml}"], "not valid YAML"),
     # simulate
     ("simulate-missing-out", ["simulate"], "required: --out"),
     (

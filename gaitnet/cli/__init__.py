@@ -166,6 +166,12 @@ def build_parser() -> argparse.ArgumentParser:
         type=_output_folder,
         help="output session folder (must not exist or be empty)",
     )
+    p.add_argument(
+        "--board",
+        metavar="FILE",
+        help="YAML file with an apriltag_boards list (as gaitnet tags prints it) to add to the "
+        "session's sheets",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.set_defaults(func=_cmd_convert)
 

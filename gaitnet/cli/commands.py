@@ -48,16 +48,29 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 
 def _cmd_convert(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from gaitnet.errors import SessionError
     from gaitnet.io import copy_session, open_session
+    from gaitnet.io.session_yaml import read_board_file
 
     session = open_session(args.input)
+    calib = session.calibration
+    boards = () if args.board is None else read_board_file(args.board)
+    if boards:
+        try:
+            calib = replace(calib, apriltag_boards=(*calib.apriltag_boards, *boards))
+        except ValueError as exc:  # e.g. a name or tag id the session's boards have already
+            raise SessionError(f"{args.board}: {exc}") from None
     out = copy_session(
         session,
         args.output,
         overwrite=args.overwrite,
         progress=lambda it, total: tqdm(it, total=total, desc="converting", unit="frame"),
+        calibration=calib,
     )
-    print(f"wrote {len(session)} frames and {len(session.imu)} IMU samples to {out}")
+    added = f", {len(boards)} AprilTag board(s) from {args.board}" if boards else ""
+    print(f"wrote {len(session)} frames and {len(session.imu)} IMU samples{added} to {out}")
     return 0
 
 

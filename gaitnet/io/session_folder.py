@@ -339,14 +339,19 @@ class SessionWriter:
             self.abort()
 
 
-def copy_session(source, out_dir: str | Path, overwrite: bool = False, progress=None) -> Path:
-    """Write any :class:`~gaitnet.io.types.SessionSource` as a session folder.
+def copy_session(
+    source, out_dir: str | Path, overwrite: bool = False, progress=None, calibration=None
+) -> Path:
+    """Write any :class:`~gaitnet.io.types.SessionSource` as a session folder, with
+    ``calibration`` (a :class:`~gaitnet.io.types.SessionCalibration`) in place of the
+    source's when given (``gaitnet convert --board``).
 
     The IMU stream is read (and validated) before anything is written, so a broken stream
     fails fast. ``progress`` optionally wraps the frame iterator (e.g. ``tqdm``) for the CLI.
     """
     imu = source.imu
-    writer = SessionWriter(out_dir, source.calibration, overwrite=overwrite)
+    calib = source.calibration if calibration is None else calibration
+    writer = SessionWriter(out_dir, calib, overwrite=overwrite)
     with writer:
         writer.set_imu(imu)
         frames = source.frames()

@@ -12,6 +12,7 @@ gives the same bytes.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +20,7 @@ import yaml
 
 from gaitnet.config import config_to_dict, parse_config, read_yaml
 from gaitnet.errors import ConfigError, SessionError
-from gaitnet.io.types import SESSION_FORMAT_VERSION, SessionCalibration
+from gaitnet.io.types import SESSION_FORMAT_VERSION, AprilTagBoard, SessionCalibration
 
 HEADER = "# gaitnet recorded session, folder format v1 (see docs/session-format.md)\n"
 
@@ -74,3 +75,25 @@ def session_yaml_text(calib: SessionCalibration) -> str:
     if not data["extra"]:
         del data["extra"]
     return HEADER + yaml.safe_dump(data, sort_keys=False, default_flow_style=None)
+
+
+@dataclass(frozen=True)
+class BoardFile:
+    """A board file (``gaitnet convert --board``): the ``apriltag_boards`` list of
+    ``session.yaml``, alone (what ``gaitnet tags`` prints)."""
+
+    apriltag_boards: tuple[AprilTagBoard, ...]
+
+
+def read_board_file(path: str | Path) -> tuple[AprilTagBoard, ...]:
+    """The AprilTag boards of a board file, each checked as ``session.yaml``'s are; a file
+    that does not parse is a :class:`~gaitnet.errors.SessionError` naming it and the key."""
+    path = Path(path)
+    if not path.is_file():
+        what = "is not a file" if path.exists() else "not found"
+        raise SessionError(f"{path}: {what} (a board file: an apriltag_boards list)")
+    data = _load_mapping(path)
+    try:
+        return parse_config(BoardFile, data, str(path)).apriltag_boards
+    except ConfigError as exc:
+        raise SessionError(str(exc)) from None
