@@ -20,7 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from gaitnet.pipeline.gap_bridge import steadily_seen
+from gaitnet.pipeline.gap_bridge import feet_steadily_seen
 from gaitnet.pipeline.swing_fill import rest_points, rests_of
 from gaitnet.vio.gait import SIDES
 from gaitnet.vio.result import StanceFoot
@@ -48,7 +48,7 @@ def reside_measured_feet(
     and the number of points moved or dropped."""
     t_s = np.asarray(t_s, dtype=np.float64)
     out = np.array(measured, dtype=np.float64, copy=True)
-    seen = np.stack([steadily_seen(np.isfinite(out[:, s]).all(axis=1)) for s in range(2)], axis=1)
+    seen = feet_steadily_seen(out)
     rests = rests_of(stance_feet)
     points = rest_points(t_s, out, seen, rests)
     changed = 0

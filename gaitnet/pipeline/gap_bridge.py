@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["bridge_gaps", "frames_to_bridge", "gaps", "steadily_seen"]
+__all__ = ["bridge_gaps", "feet_steadily_seen", "frames_to_bridge", "gaps", "steadily_seen"]
 
 
 def steadily_seen(measured: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -34,6 +34,13 @@ def steadily_seen(measured: NDArray[np.bool_]) -> NDArray[np.bool_]:
     frame's detection between misses is as likely a false one, and a gap must not end on it."""
     m = np.asarray(measured, dtype=bool)
     return m & (np.r_[False, m[:-1]] | np.r_[m[1:], False])
+
+
+def feet_steadily_seen(points: np.ndarray) -> NDArray[np.bool_]:
+    """(n, 2) per frame and foot, whether ``points`` (n, 2, 3; NaN where not seen) holds a
+    whole point for that foot steadily (:func:`steadily_seen`)."""
+    p = np.asarray(points, dtype=np.float64)
+    return np.stack([steadily_seen(np.isfinite(p[:, s]).all(axis=1)) for s in range(2)], axis=1)
 
 
 def gaps(measured: NDArray[np.bool_]) -> list[tuple[int, int]]:

@@ -94,7 +94,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gaitnet.pipeline.gap_bridge import steadily_seen
+from gaitnet.pipeline.gap_bridge import feet_steadily_seen
 from gaitnet.vio.gait import SIDES, Stance, merge_split_stances
 from gaitnet.vio.result import StanceFoot
 
@@ -223,9 +223,7 @@ def plan_swings(
             f"swing_fill: measured must be (n, 2, 3) for n = {len(t_s)} frames, "
             f"got {measured.shape}"
         )
-    seen = np.stack(
-        [steadily_seen(np.isfinite(measured[:, s]).all(axis=1)) for s in range(2)], axis=1
-    )
+    seen = feet_steadily_seen(measured)
     rests = rests_of(stance_feet)
     swings = _candidate_swings(t_s, measured, seen, rests)
     # the typical cycle and stride, from the pairs that are not a foot's first
@@ -299,9 +297,7 @@ def swing_fill(
     out = np.full((len(t_s), 2, 3), np.nan)
     # the foot rests at its point through each stance's unseen frames
     measured = np.asarray(measured, dtype=np.float64)
-    seen = np.stack(
-        [steadily_seen(np.isfinite(measured[:, s]).all(axis=1)) for s in range(2)], axis=1
-    )
+    seen = feet_steadily_seen(measured)
     rests = rests_of(stance_feet)
     points = rest_points(t_s, measured, seen, rests)
     for r in rests:
