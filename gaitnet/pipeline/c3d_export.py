@@ -78,9 +78,7 @@ def write_gait_c3d(
     # two result frames on one slot (a frame interval far below the median): the later wins
     points[:3, :, slots] = np.transpose(xyz, (2, 1, 0))
     points[3, :, slots] = 1.0
-    residuals[0, :, slots] = 0.0
-    invalid = residuals[0] < 0
-    points[:3][:, invalid] = 0.0
+    residuals[0, :, slots] = 0.0  # grid frames no result frame reaches stay (0, 0, 0), −1
     c3d = ezc3d.c3d()
     c3d["parameters"]["POINT"]["RATE"]["value"] = np.array([rate])
     c3d["parameters"]["POINT"]["LABELS"]["value"] = labels
