@@ -26,6 +26,7 @@ TRAINING_MODULES = {
     "gaitnet.segmentation.vgg16_weights",
     "gaitnet.training.checkpoint",
     "gaitnet.training.distributed",
+    "gaitnet.training.onnx_weights",
     "gaitnet.training.predictor",
     "gaitnet.training.runs",
     "gaitnet.training.seeding",

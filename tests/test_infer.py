@@ -14,7 +14,6 @@ from pathlib import Path
 import ezc3d
 import numpy as np
 import pytest
-import torch
 
 from gaitnet.cli import main
 from gaitnet.evaluation.evaluate import evaluate_result
@@ -27,29 +26,13 @@ from gaitnet.pipeline.foot_points import floor_in_camera
 from gaitnet.pipeline.infer import _contact
 from gaitnet.pipeline.pelvis_extrinsic import standing_feet, standing_frames
 from gaitnet.segmentation.edge_refine import EdgeRefineParams
-from gaitnet.segmentation.onnx_runtime import export_segmenter_onnx
-from gaitnet.segmentation.segmenter_net import build_segmenter
 from gaitnet.vio.result import StanceFoot
 
 
 @pytest.fixture(scope="module")
-def tiny_segmenter(tmp_path_factory, tiny_sim_session: Path) -> Path:
-    calib = open_session(tiny_sim_session).calibration
-    torch.manual_seed(1)
-    model = build_segmenter("fusion", width=1 / 16).eval()
-    with torch.no_grad():
-        for name, p in model.named_parameters():
-            if "score" in name:
-                p.normal_(0.0, 0.5)
-    path = tmp_path_factory.mktemp("inf") / "seg.onnx"
-    export_segmenter_onnx(model, path, height=calib.color.height, width=calib.color.width)
-    return path
-
-
-@pytest.fixture(scope="module")
-def inferred(tmp_path_factory, tiny_sim_session: Path, tiny_segmenter: Path) -> Path:
+def inferred(tmp_path_factory, tiny_sim_session: Path, tiny_model: Path) -> Path:
     out = tmp_path_factory.mktemp("inf") / "out"
-    args = ["infer", str(tiny_sim_session), "--out", str(out), "--segmenter", str(tiny_segmenter)]
+    args = ["infer", str(tiny_sim_session), "--out", str(out), "--segmenter", str(tiny_model)]
     assert main([*args, "--save-labels", "pipeline.subject_height_m=1.7"]) == 0
     return out
 
@@ -136,10 +119,10 @@ def test_world_frame_is_recorded_and_evaluate_warns_on_its_own(
 
 
 def test_bad_arguments_are_one_line(
-    tmp_path: Path, tiny_sim_session: Path, tiny_segmenter: Path, capsys
+    tmp_path: Path, tiny_sim_session: Path, tiny_model: Path, capsys
 ) -> None:
     args = ["infer", str(tiny_sim_session), "--out", str(tmp_path / "o")]
-    args += ["--segmenter", str(tiny_segmenter)]
+    args += ["--segmenter", str(tiny_model)]
     assert main([*args, "pipeline.foot_keypoint=toe"]) == 1
     assert "foot_keypoint" in capsys.readouterr().err
     assert main([*args, "--predictor", str(tmp_path / "none.onnx")]) == 1
@@ -212,7 +195,7 @@ FIRST_RUN_ONLY = ["vio.smoother.enabled=false", "pipeline.segmented_stances=fals
 
 
 def test_workers_act_and_do_not_change_the_result(
-    tiny_sim_session: Path, tiny_segmenter: Path, monkeypatch
+    tiny_sim_session: Path, tiny_model: Path, monkeypatch
 ) -> None:
     """``pipeline.workers`` sets the threads that segment frames; the measured feet are the
     same for 1 and 3 threads (each frame is measured on its own)."""
@@ -229,7 +212,7 @@ def test_workers_act_and_do_not_change_the_result(
 
     monkeypatch.setattr(infer, "ThreadPoolExecutor", spy)
     session = open_session(tiny_sim_session)
-    seg = OnnxSegmenter(tiny_segmenter)
+    seg = OnnxSegmenter(tiny_model)
     one = infer.observe(
         session,
         load_config(InferConfig, None, [*FIRST_RUN_ONLY, "pipeline.workers=1"]),
@@ -246,7 +229,7 @@ def test_workers_act_and_do_not_change_the_result(
 
 
 def test_models_keys_reach_the_segmenter(
-    tmp_path: Path, tiny_sim_session: Path, tiny_segmenter: Path, monkeypatch, capsys
+    tmp_path: Path, tiny_sim_session: Path, tiny_model: Path, monkeypatch, capsys
 ) -> None:
     """``models.threads``, ``models.segmenter_flip_average`` and the ``edge_refine`` keys are
     the segmenter's settings in ``gaitnet infer`` (their effects: test_segmentation_onnx.py,
@@ -264,7 +247,7 @@ def test_models_keys_reach_the_segmenter(
 
     monkeypatch.setattr(onnx_runtime, "OnnxSegmenter", Spy)
     args = ["infer", str(tiny_sim_session), "--out", str(tmp_path / "o")]
-    args += ["--segmenter", str(tiny_segmenter)]
+    args += ["--segmenter", str(tiny_model)]
     assert main([*args, "models.threads=2", "models.segmenter_flip_average=true"]) == 1
     assert "stop here" in capsys.readouterr().err
     assert made[-1].flip_average
@@ -283,7 +266,7 @@ def test_models_keys_reach_the_segmenter(
 
 
 def test_feet_measured_on_the_filter_pose_end_on_the_smoothed_one(
-    tiny_sim_session: Path, tiny_segmenter: Path, monkeypatch
+    tiny_sim_session: Path, tiny_model: Path, monkeypatch
 ) -> None:
     """The frames are segmented with the filter's pose while it runs; a point the segmenter
     finds at a fixed place in the camera frame ends at the smoothed camera pose's world point."""
@@ -314,7 +297,7 @@ def test_feet_measured_on_the_filter_pose_end_on_the_smoothed_one(
     monkeypatch.setattr(infer, "measure_feet", fixed_feet)
     monkeypatch.setattr(infer, "run_vio", smoothed_elsewhere)
     cfg = load_config(InferConfig, None, ["pipeline.workers=2"])
-    obs = infer.observe(open_session(tiny_sim_session), cfg, OnnxSegmenter(tiny_segmenter))
+    obs = infer.observe(open_session(tiny_sim_session), cfg, OnnxSegmenter(tiny_model))
     vio = obs.vio
     np.testing.assert_allclose(np.array(poses_seen), vio.T_WfromC_filter, atol=1e-12)
     expected = np.einsum("kij,sj->ksi", vio.T_WfromC_smoothed[:, :3, :3], p_C)
@@ -459,7 +442,7 @@ def test_a_camera_too_high_for_a_waist_warns_and_the_height_key_silences_it(
 
 @pytest.mark.parametrize("segmented", [True, False])
 def test_segmented_stances_run_the_filter_again_with_the_foot_pixels(
-    tiny_sim_session: Path, tiny_segmenter: Path, monkeypatch, segmented: bool
+    tiny_sim_session: Path, tiny_model: Path, monkeypatch, segmented: bool
 ) -> None:
     """``pipeline.segmented_stances``: the filter runs a second time, handed each frame's foot
     pixels by its time stamp, and its result is kept; the feet measured on the first run's
@@ -493,7 +476,7 @@ def test_segmented_stances_run_the_filter_again_with_the_foot_pixels(
     monkeypatch.setattr(infer, "run_vio", recorded)
     keys = [f"pipeline.segmented_stances={str(segmented).lower()}"]
     cfg = load_config(InferConfig, None, keys)
-    obs = infer.observe(open_session(tiny_sim_session), cfg, OnnxSegmenter(tiny_segmenter))
+    obs = infer.observe(open_session(tiny_sim_session), cfg, OnnxSegmenter(tiny_model))
     assert len(calls) == (2 if segmented else 1)
     assert calls[0].get("foot_masks") is None
     assert ("filter_segmented" in obs.timings_s) == segmented
@@ -509,7 +492,7 @@ def test_segmented_stances_run_the_filter_again_with_the_foot_pixels(
 
 
 def test_a_failed_run_with_the_segmented_feet_keeps_the_first(
-    tiny_sim_session: Path, tiny_segmenter: Path, monkeypatch, caplog
+    tiny_sim_session: Path, tiny_model: Path, monkeypatch, caplog
 ) -> None:
     """A second run of the filter that diverges (or refuses the session) leaves the first
     run's result, with a warning saying so."""
@@ -538,6 +521,6 @@ def test_a_failed_run_with_the_segmented_feet_keeps_the_first(
     monkeypatch.setattr(infer, "run_vio", diverging)
     cfg = load_config(InferConfig, None, [])
     with caplog.at_level(logging.WARNING, logger="gaitnet.pipeline.infer"):
-        obs = infer.observe(open_session(tiny_sim_session), cfg, OnnxSegmenter(tiny_segmenter))
+        obs = infer.observe(open_session(tiny_sim_session), cfg, OnnxSegmenter(tiny_model))
     assert obs.vio is first[0]
     assert "segmented feet failed (position covariance exploded" in caplog.text

@@ -78,3 +78,23 @@ def test_labels_txt(tmp_path: Path) -> None:
     (tmp_path / "bad.txt").write_text("foot\nleg\n")
     with pytest.raises(InputError, match="must start with"):
         read_labels_txt(tmp_path / "bad.txt")
+
+
+def test_holes_and_unsided_regions_round_trip(tmp_path: Path) -> None:
+    """A leg ring keeps its hole (a ``_background_`` polygon painted after it) and a region of
+    unknown side is written without a group id."""
+    labels = np.zeros((120, 160), np.uint8)
+    cv2.circle(labels, (60, 60), 40, 2, -1)
+    cv2.circle(labels, (60, 60), 15, 0, -1)
+    cv2.rectangle(labels, (120, 20), (140, 60), 1, -1)
+    instances = np.where(labels == 2, 1, 0).astype(np.int32)  # the foot's side unknown
+    cv2.imwrite(str(tmp_path / "f.png"), np.zeros((120, 160, 3), np.uint8))
+    doc = labelme_document(labels, instances, "f.png")
+    assert [(s["label"], s["group_id"]) for s in doc["shapes"]] == [
+        ("leg", 1), ("_background_", None), ("foot", None),
+    ]  # fmt: skip
+    (tmp_path / "f.json").write_text(json.dumps(doc))
+    cls, _, _ = read_labelme(tmp_path / "f.json")
+    assert cls[60, 60] == 0
+    for value in (0, 1, 2):
+        assert iou(cls == value, labels == value) > 0.95

@@ -11,7 +11,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-import torch
 from oneline import assert_one_line_exit
 from sessionfactory import make_tiny_session
 
@@ -22,30 +21,12 @@ from gaitnet.segmentation.edge_refine import EdgeRefineParams, argmax_classes, r
 from gaitnet.segmentation.hha import HhaParams, find_floor, hha_encode
 from gaitnet.segmentation.onnx_runtime import (
     OnnxSegmenter,
-    export_segmenter_onnx,
     network_input,
 )
 from gaitnet.segmentation.postprocess import DROP_REASONS, foot_keypoints, kept_feet_labels
 from gaitnet.segmentation.segment_session import KEYPOINT_COLUMNS, accelerometer_gravity_C
-from gaitnet.segmentation.segmenter_net import build_segmenter
 
 DEFAULT_REFINE = EdgeRefineParams()  # gaitnet segment's
-
-
-@pytest.fixture(scope="module")
-def tiny_model(tmp_path_factory, tiny_sim_session: Path) -> Path:
-    """A random fusion segmenter for the tiny session's frame size (score layers drawn at
-    random so that every class appears; the published zero init would give background only)."""
-    calib = open_session(tiny_sim_session).calibration
-    torch.manual_seed(0)
-    model = build_segmenter("fusion", width=1 / 16, input_scale=1.0).eval()
-    with torch.no_grad():
-        for name, p in model.named_parameters():
-            if "score" in name:
-                p.normal_(0.0, 0.5)
-    path = tmp_path_factory.mktemp("seg") / "tiny.onnx"
-    export_segmenter_onnx(model, path, height=calib.color.height, width=calib.color.width)
-    return path
 
 
 def _middle_frame_by_hand(

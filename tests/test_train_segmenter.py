@@ -5,7 +5,6 @@ Every run here trains a width-1/16 net on 64×48 simulated frames for a few batc
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import socket
@@ -18,6 +17,7 @@ import numpy as np
 import pytest
 import torch
 import yaml
+from scriptload import load_script
 
 from gaitnet.config import config_keys, load_config
 from gaitnet.errors import ConfigError, GaitnetError, InputError
@@ -42,15 +42,8 @@ ROOT = Path(__file__).parents[1]
 SCRIPT = ROOT / "train" / "segmenter.py"
 
 
-def _load_script(path: Path = SCRIPT):
-    spec = importlib.util.spec_from_file_location(path.stem, path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-script = _load_script()
-calibrate = _load_script(ROOT / "train" / "calibrate_segmenter.py")
+script = load_script(SCRIPT)
+calibrate = load_script(ROOT / "train" / "calibrate_segmenter.py")
 
 
 @pytest.fixture(scope="module")

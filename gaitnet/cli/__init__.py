@@ -319,6 +319,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="feet: refine the foot labels around each foot (fast); frame: every label of the "
         f"frame (default {refine.region})",
     )
+    p.add_argument(
+        "--label-frames",
+        metavar="N",
+        type=_integer,
+        default=None,
+        help="instead: write N frames spread over the session as a labelme folder, pre-labelled "
+        "by the segmenter, to correct and fine-tune on (1–10000; docs/recording.md)",
+    )
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.set_defaults(func=_cmd_segment)
 

@@ -252,6 +252,10 @@ def _cmd_segment(args: argparse.Namespace) -> int:
         edge_refine = EdgeRefineParams(args.refine_radius, args.refine_eps, args.refine_region)
     except ValueError as exc:
         raise UsageError(f"{PROG} segment", f"--refine-radius / --refine-eps: {exc}") from None
+    if args.label_frames is not None and not 1 <= args.label_frames <= 10_000:
+        raise UsageError(
+            f"{PROG} segment", f"--label-frames must be within 1–10000, got {args.label_frames}"
+        )
     check_output_folder(args.out, args.overwrite)
     session = open_session(args.session)
     model = OnnxSegmenter(
@@ -260,6 +264,8 @@ def _cmd_segment(args: argparse.Namespace) -> int:
         flip_average=args.flip_average,
         edge_refine=edge_refine,
     )
+    if args.label_frames is not None:
+        return _write_frames_to_label(args, session, model)
     result = segment_session(
         session,
         model,
@@ -276,6 +282,27 @@ def _cmd_segment(args: argparse.Namespace) -> int:
         f"{ms:.1f} ms per frame"
     )
     print(f"wrote {result.path} (labels/, keypoints.csv, contact_sheet.png, summary.json)")
+    return 0
+
+
+def _write_frames_to_label(args: argparse.Namespace, session, model) -> int:
+    from gaitnet.segmentation.label_frames import write_frames_to_label
+
+    result = write_frames_to_label(
+        session,
+        model,
+        args.out,
+        args.label_frames,
+        overwrite=args.overwrite,
+        progress=lambda it, total: tqdm(it, total=total, desc="pre-labelling", unit="frame"),
+    )
+    print(f"model {model.path} ({model.arch})")
+    print(
+        f"wrote {len(result.frame_ids)} frames with {result.shapes} pre-labelled shapes to "
+        f"{result.path} (images/*.png and *.json, depth/, camera.yaml, frames.csv, labels.txt): "
+        f"correct them in labelme (labelme {result.path}/images), then fine-tune "
+        "(docs/recording.md)"
+    )
     return 0
 
 

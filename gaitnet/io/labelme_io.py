@@ -66,16 +66,26 @@ def read_labels_txt(path: Path) -> dict[str, int]:
     return {n: CLASS_VALUES[n] for n in names}
 
 
-def _polygons(mask: np.ndarray, min_area_px: float) -> list[list[list[float]]]:
+def _outlines(mask: np.ndarray, min_area_px: float) -> tuple[list, list[list[list[float]]]]:
+    """The outer contours of ``mask``'s regions (OpenCV's) and the same as ``[x, y]`` point
+    lists; regions enclosing less than ``min_area_px`` are left out."""
     contours, _ = cv2.findContours(
         mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE
     )
-    polygons = []
-    for contour in contours:
-        if cv2.contourArea(contour) < min_area_px or len(contour) < 3:
-            continue
-        polygons.append([[float(x), float(y)] for x, y in contour[:, 0, :]])
-    return polygons
+    kept = [c for c in contours if len(c) >= 3 and cv2.contourArea(c) >= min_area_px]
+    return kept, [[[float(x), float(y)] for x, y in c[:, 0, :]] for c in kept]
+
+
+def _polygons(
+    mask: np.ndarray, min_area_px: float
+) -> tuple[list[list[list[float]]], list[list[list[float]]]]:
+    """The outlines of ``mask``'s regions, and the outlines of the holes inside them (the
+    pixels the filled outlines cover that are not ``mask``'s)."""
+    contours, outer = _outlines(mask, min_area_px)
+    filled = np.zeros(mask.shape, np.uint8)
+    cv2.drawContours(filled, contours, -1, 1, thickness=cv2.FILLED)
+    _, holes = _outlines((filled > 0) & ~mask.astype(bool), min_area_px)
+    return outer, holes
 
 
 def labelme_document(
@@ -84,26 +94,31 @@ def labelme_document(
     image_path: str,
     min_area_px: float = 4.0,
 ) -> dict:
-    """A labelme JSON document (dict) with one polygon per connected region of each class.
+    """A labelme JSON document (dict) with one polygon per connected region of each class,
+    followed by a ``_background_`` polygon per hole in those regions (labelme polygons have no
+    holes; painted in order, the hole is background again unless a later shape covers it).
 
-    ``group_id`` is 1 for the left and 2 for the right side (from ``instances``).
+    ``group_id`` is 1 for the left and 2 for the right side (from ``instances``); regions of
+    side 0 (unknown) have none.
     """
     shapes = []
     for name in ("leg", "foot"):
         value = CLASS_VALUES[name]
-        for group_id in sorted(INSTANCE_GROUPS):
+        for group_id in (*sorted(INSTANCE_GROUPS), 0):
             mask = (labels == value) & (instances == group_id)
-            for points in _polygons(mask, min_area_px):
-                shapes.append(
+            outer, holes = _polygons(mask, min_area_px)
+            for label, polygons in ((name, outer), ("_background_", holes)):
+                shapes += [
                     {
-                        "label": name,
+                        "label": label,
                         "points": points,
-                        "group_id": group_id,
-                        "description": INSTANCE_GROUPS[group_id],
+                        "group_id": group_id or None if label == name else None,
+                        "description": INSTANCE_GROUPS.get(group_id, "") if label == name else "",
                         "shape_type": "polygon",
                         "flags": {},
                     }
-                )
+                    for points in polygons
+                ]
     height, width = labels.shape
     return {
         "version": "5.5.0",

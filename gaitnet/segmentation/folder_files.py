@@ -27,6 +27,7 @@ __all__ = [
     "LABEL_VALUES",
     "SIDE_VALUES",
     "SPLIT_FRACTIONS",
+    "camera_yaml_text",
     "check_id",
     "check_size",
     "check_values",
@@ -160,6 +161,20 @@ def list_frames(root: str | Path) -> list[str]:
 
 
 # ------------------------------------------------------------------ camera.yaml, frames.csv
+
+
+def camera_yaml_text(intr: CameraIntrinsics, depth_scale_m: float) -> str:
+    """A folder's camera.yaml (what :func:`read_camera_yaml` reads) for these intrinsics."""
+    camera = {
+        "width": intr.width,
+        "height": intr.height,
+        "fx": intr.fx,
+        "fy": intr.fy,
+        "cx": intr.cx,
+        "cy": intr.cy,
+        "depth_scale_m": depth_scale_m,
+    }
+    return yaml.safe_dump(camera, sort_keys=False)
 
 
 def read_camera_yaml(path: Path) -> tuple[CameraIntrinsics, float]:

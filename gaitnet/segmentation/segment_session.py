@@ -48,7 +48,8 @@ from gaitnet.errors import InputError
 from gaitnet.io.atomic import staged_folder
 from gaitnet.io.contact_sheet import colourise_labels, contact_sheet, write_png
 from gaitnet.io.images import encode_png
-from gaitnet.io.types import ImuSamples, SessionSource, require_depth_aligned
+from gaitnet.io.types import Frame, ImuSamples, SessionSource, require_depth_aligned
+from gaitnet.segmentation.foot_types import FootDetection
 from gaitnet.segmentation.hha import HhaParams, find_floor, hha_encode, hha_stride
 from gaitnet.segmentation.midline import MidlineEstimate, pair_midpoint
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
@@ -140,6 +141,88 @@ def _overlay(rgb: np.ndarray, labels: np.ndarray, feet: list) -> np.ndarray:
     return out
 
 
+@dataclass
+class SegmentedFrame:
+    """One frame through :class:`FrameSegmenter`."""
+
+    labels: np.ndarray
+    """Label map after the post-processing (:func:`~gaitnet.segmentation.postprocess.
+    kept_feet_labels`)."""
+    network_labels: np.ndarray
+    """The network's label map (edge refinement included)."""
+    feet: list[FootDetection]
+    gravity_C: np.ndarray | None
+    """Unit gravity in the camera frame (:func:`accelerometer_gravity_C`), None without IMU."""
+    seconds: tuple[float, float, float]
+    """Time spent in HHA, the network and the keypoints."""
+
+
+class FrameSegmenter:
+    """The per-frame steps of :func:`segment_session`: gravity from the accelerometer, the floor
+    fit, HHA, the network and the foot keypoints. The first frames' feet place the walker's
+    midline (:class:`~gaitnet.segmentation.midline.MidlineEstimate`), which sides the later
+    ones. Counts the foot blobs dropped (``dropped``) and the frames without gravity."""
+
+    def __init__(
+        self,
+        session: SessionSource,
+        segmenter: OnnxSegmenter,
+        hha_params: HhaParams,
+        keypoint_params: FootKeypointParams | None,
+        gravity_window_s: float,
+    ) -> None:
+        self._session, self._segmenter = session, segmenter
+        self._hha_params = hha_params
+        self._keypoint_params = keypoint_params or FootKeypointParams()
+        self._midline = MidlineEstimate(self._keypoint_params)
+        self._window_s = gravity_window_s
+        self._stride = hha_stride(segmenter.input_scale)
+        self.dropped: Counter = Counter()
+        self.no_gravity = 0
+        self.n_frames = 0
+
+    def __call__(self, frame: Frame) -> SegmentedFrame:
+        calib = self._session.calibration
+        K = calib.color.K
+        t0 = time.perf_counter()
+        gravity = accelerometer_gravity_C(
+            self._session.imu, calib.T_CfromI, frame.t_ns, self._window_s
+        )
+        self.no_gravity += gravity is None
+        self.n_frames += 1
+        up = None if gravity is None else -gravity
+        plane = find_floor(frame.depth_m, K, up, self._hha_params)  # one fit: HHA and the feet
+        hha = hha_encode(
+            frame.depth_m, K, gravity, self._hha_params, plane=plane, stride=self._stride
+        )
+        t1 = time.perf_counter()
+        network_labels = self._segmenter.labels(frame.rgb, hha)
+        t2 = time.perf_counter()
+        params = self._keypoint_params
+        feet = foot_keypoints(
+            network_labels, frame.depth_m, K, params, gravity_C=gravity, plane=plane,
+            dropped=self.dropped,
+        )  # fmt: skip
+        if self._midline.collecting:
+            self._midline.add(pair_midpoint(feet, params), up_C=up)
+            if not self._midline.collecting:
+                self._keypoint_params = self._midline.params()
+        labels = kept_feet_labels(network_labels, feet)
+        t3 = time.perf_counter()
+        return SegmentedFrame(labels, network_labels, feet, gravity, (t1 - t0, t2 - t1, t3 - t2))
+
+    def warn_without_gravity(self) -> None:
+        """Log how many frames found the floor without the gravity prior, if any."""
+        if self.no_gravity:
+            log.warning(
+                "%d of %d frames had fewer than 5 IMU samples within ±%.2f s: HHA found the "
+                "floor without the gravity prior there",
+                self.no_gravity,
+                self.n_frames,
+                self._window_s / 2,
+            )
+
+
 def segment_session(
     session: SessionSource,
     segmenter: OnnxSegmenter,
@@ -154,11 +237,10 @@ def segment_session(
     """Segment every frame of ``session`` into ``out_dir`` (module docstring)."""
     require_depth_aligned(session, "the segmenter")
     hha_params = hha_params or HhaParams()
-    keypoint_params = keypoint_params or FootKeypointParams()
-    midline = MidlineEstimate(keypoint_params)  # the first frames side the later ones
     options = options or SegmentOptions()
-    calib = session.calibration
-    K = calib.color.K
+    per_frame = FrameSegmenter(
+        session, segmenter, hha_params, keypoint_params, options.gravity_window_s
+    )
     n = len(session)
     sheet_at = set(np.linspace(0, n - 1, min(options.sheet_frames, n)).round().astype(int))
     timings = dict.fromkeys(("hha", "network", "keypoints", "write"), 0.0)
@@ -167,36 +249,15 @@ def segment_session(
     sheet: list[list[np.ndarray]] = []
     captions: list[str] = []
     with_foot = 0
-    no_gravity = 0
-    dropped: Counter = Counter()
     with staged_folder(out_dir, overwrite) as stage:
         (stage / "labels").mkdir()
         frames: Iterable = session.frames()
         if progress is not None:
             frames = progress(frames, n)
-        stride = hha_stride(segmenter.input_scale)
         for k, frame in enumerate(frames):
-            t0 = time.perf_counter()
-            gravity = accelerometer_gravity_C(
-                session.imu, calib.T_CfromI, frame.t_ns, options.gravity_window_s
-            )
-            no_gravity += gravity is None
-            up = None if gravity is None else -gravity
-            plane = find_floor(frame.depth_m, K, up, hha_params)  # one fit for HHA and the feet
-            hha = hha_encode(frame.depth_m, K, gravity, hha_params, plane=plane, stride=stride)
-            t1 = time.perf_counter()
-            labels = segmenter.labels(frame.rgb, hha)
-            t2 = time.perf_counter()
-            feet = foot_keypoints(
-                labels, frame.depth_m, K, keypoint_params, gravity_C=gravity, plane=plane,
-                dropped=dropped,
-            )  # fmt: skip
-            if midline.collecting:
-                midline.add(pair_midpoint(feet, keypoint_params), up_C=up)
-                if not midline.collecting:
-                    keypoint_params = midline.params()
-            if not options.raw_labels:
-                labels = kept_feet_labels(labels, feet)
+            seg = per_frame(frame)
+            feet = seg.feet
+            labels = seg.network_labels if options.raw_labels else seg.labels
             t3 = time.perf_counter()
             (stage / "labels" / f"{frame.t_ns}.png").write_bytes(encode_png(labels))
             counts += np.bincount(labels.ravel(), minlength=3)[:3]
@@ -221,17 +282,9 @@ def segment_session(
             if k in sheet_at:
                 sheet.append([_overlay(frame.rgb, labels, feet), colourise_labels(labels)])
                 captions.append(f"t = {frame.t_ns * 1e-9:.2f} s, {len(feet)} foot blob(s)")
-            t4 = time.perf_counter()
-            for key, dt in zip(timings, (t1 - t0, t2 - t1, t3 - t2, t4 - t3), strict=True):
+            for key, dt in zip(timings, (*seg.seconds, time.perf_counter() - t3), strict=True):
                 timings[key] += dt
-        if no_gravity:
-            log.warning(
-                "%d of %d frames had fewer than 5 IMU samples within ±%.2f s: HHA found the "
-                "floor without the gravity prior there",
-                no_gravity,
-                n,
-                options.gravity_window_s / 2,
-            )
+        per_frame.warn_without_gravity()
         text = io.StringIO()
         writer = csv.DictWriter(text, fieldnames=KEYPOINT_COLUMNS, lineterminator="\n")
         writer.writeheader()
@@ -249,8 +302,8 @@ def segment_session(
             "arch": segmenter.arch,
             "frames": n,
             "frames_with_foot": with_foot,
-            "feet_dropped": dict(sorted(dropped.items())),
-            "frames_without_gravity": no_gravity,
+            "feet_dropped": dict(sorted(per_frame.dropped.items())),
+            "frames_without_gravity": per_frame.no_gravity,
             "label_fractions": fractions,
             "hha": asdict(hha_params),
             "seconds": timings,

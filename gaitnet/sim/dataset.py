@@ -52,6 +52,7 @@ from gaitnet.io.atomic import atomic_write_text, check_output_folder, staged_fol
 from gaitnet.io.contact_sheet import colourise_depth, colourise_labels, contact_sheet, write_png
 from gaitnet.io.images import depth_to_units, encode_png
 from gaitnet.io.labelme_io import labelme_document, labels_txt
+from gaitnet.segmentation.folder_files import camera_yaml_text
 from gaitnet.sim.config import SimConfig
 from gaitnet.sim.render_types import F32, RenderResult
 from gaitnet.sim.rig import PITCH_RANGE_DEG
@@ -258,17 +259,8 @@ def simulate_dataset(
                 captions.append(f"{name}: {scene.floor_family}, {scene.pitch_deg:.0f}°")
         atomic_write_text(staging / "frames.csv", "\n".join(rows) + "\n")
         atomic_write_text(staging / "labels.txt", labels_txt())
-        intr = cfg.camera.intrinsics()
-        camera = {
-            "width": intr.width,
-            "height": intr.height,
-            "fx": intr.fx,
-            "fy": intr.fy,
-            "cx": intr.cx,
-            "cy": intr.cy,
-            "depth_scale_m": DEPTH_SCALE_M,
-        }
-        atomic_write_text(staging / "camera.yaml", yaml.safe_dump(camera, sort_keys=False))
+        camera = camera_yaml_text(cfg.camera.intrinsics(), DEPTH_SCALE_M)
+        atomic_write_text(staging / "camera.yaml", camera)
         header = (
             f"# gaitnet simulate-dataset --config <this file> --seed {seed} --n {n_frames}"
             f"{' --labelme' if labelme else ''} reproduces this data set\n"

@@ -49,6 +49,7 @@ from gaitnet.segmentation.segmenter_net import (
 )
 from gaitnet.training.checkpoint import load_checkpoint
 from gaitnet.training.checkpoint import with_checkpoint_model as checkpoint_model
+from gaitnet.training.onnx_weights import segmenter_from_onnx
 from gaitnet.training.predictor import DEVICE_PATTERN
 from gaitnet.training.segmenter_data import set_name
 
@@ -312,9 +313,13 @@ def start_from_checkpoint(net: SegmenterNet, path: Path) -> list[str]:
     ``net``; the rest keep their initialisation (their names are returned). This is the FCN
     authors' staged training (FCN-16s started from FCN-32s, FCN-8s from FCN-16s): a net with a
     finer ``output_stride`` starts from a coarser one, its new score layers at zero. The
-    checkpoint's arch, width, padding and classes must be ``net``'s."""
-    ckpt = load_checkpoint(path)
-    source = segmenter_from_checkpoint(ckpt, str(path))
+    checkpoint's arch, width, padding and classes must be ``net``'s. A segmenter ONNX export
+    (``.onnx``, e.g. the committed model) serves as well: its weights are read back from the
+    graph (:func:`~gaitnet.training.onnx_weights.segmenter_from_onnx`), for fine-tuning."""
+    if Path(path).suffix.lower() == ".onnx":
+        source = segmenter_from_onnx(path)
+    else:
+        source = segmenter_from_checkpoint(load_checkpoint(path), str(path))
     theirs, ours = source.config(), net.config()
     for key in ("arch", "width", "padding", "num_classes"):
         if theirs[key] != ours[key]:
