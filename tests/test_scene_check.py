@@ -83,6 +83,9 @@ def test_a_simulated_walk_passes_and_each_fault_is_named(tiny_sim_session: Path)
         ("scene.min_imu_coverage=1.0", None),  # every frame is covered: still passes
         ("scene.max_pitch_deg=60", "below the horizon"),  # the simulated mount: 70°
         ("scene.min_pitch_deg=80", "below the horizon"),
+        ("scene.min_leg_fraction=0.5", "no legs under the camera"),
+        ("scene.leg_reach_m=0.01", "no legs under the camera"),
+        ("scene.leg_min_height_m=0.95", "no legs under the camera"),
     ],
 )
 def test_every_threshold_acts(tiny_sim_session: Path, override: str, needle: str | None) -> None:
@@ -227,3 +230,56 @@ def test_scale_says_when_it_rests_on_depth_alone() -> None:
     assert scale_source(result) == SCALE_FROM_SHEETS
     result.used, result.initialisation = Counter(), "apriltag"
     assert scale_source(result) == SCALE_FROM_SHEETS
+
+
+def _floor_only(frame, K: np.ndarray, up_C: np.ndarray, cfg: VioConfig):
+    """``frame`` with its depth replaced by the depth of its fitted floor alone (the walker
+    and everything else removed): ``n·(z r) + h = 0`` along each pixel's ray ``r``."""
+    from gaitnet.geometry.floor_plane import fit_floor, floor_points
+
+    pts = floor_points(frame.depth_m, K, cfg.floor.stride, cfg.floor.max_range_m)
+    plane = fit_floor(pts, up_C, cfg.floor)
+    h, w = frame.depth_m.shape
+    u, v = np.meshgrid(np.arange(w), np.arange(h))
+    rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones(u.shape)], -1)
+    facing = rays @ plane.n_C
+    depth = np.where(facing < -1e-6, -plane.h / np.minimum(facing, -1e-6), 0.0)
+    return replace(frame, depth_m=depth.astype(np.float32))
+
+
+def test_a_floor_without_the_walkers_legs_is_refused(tiny_sim_session: Path) -> None:
+    """The same first frames with only their floor left: a camera that does not see its
+    wearer's legs (a tripod, a hand) is refused; the walk itself shows them."""
+    from gaitnet.geometry.floor_plane import fit_floor, floor_points
+    from gaitnet.vio.scene_check import leg_fraction
+
+    cfg = VioConfig()
+    source = open_session(tiny_sim_session)
+    K = source.calibration.color.K
+    frames = [source.frame(i) for i in range(3)]
+    up_I = standing_up(source.imu, int(frames[0].t_ns), cfg.init)
+    up_C = source.calibration.T_CfromI[:3, :3] @ up_I
+    pts = floor_points(frames[0].depth_m, K, cfg.floor.stride, cfg.floor.max_range_m)
+    plane = fit_floor(pts, up_C, cfg.floor)
+    assert leg_fraction(pts, plane.height(pts), plane, cfg.scene) > 5 * cfg.scene.min_leg_fraction
+    bare = [_floor_only(f, K, up_C, cfg) for f in frames]
+    (problem,) = _scene(tiny_sim_session, cfg, frames=bare)
+    assert problem.startswith("no legs under the camera: 0.00 % of the depth points")
+    relaxed = replace(cfg, scene=replace(cfg.scene, min_leg_fraction=0.0))
+    assert _scene(tiny_sim_session, relaxed, frames=bare) == []
+
+
+def test_leg_fraction_counts_the_volume_under_the_camera() -> None:
+    """Known answer: a floor 1 m below a camera looking straight down; points at 0.5 m height
+    count within the reach of the plumb line and below 0.15 m under the camera only."""
+    from gaitnet.geometry.floor_plane import FloorPlane
+    from gaitnet.vio.scene_check import SceneParams, leg_fraction
+
+    plane = FloorPlane(n_C=np.array([0.0, 0.0, -1.0]), h=1.0)  # camera z down, floor at z 1
+    points = np.array([
+        [0.1, 0.0, 0.5],   # a leg: 0.5 m up, 0.1 m off the plumb line
+        [0.6, 0.0, 0.5],   # beyond the 0.5 m reach
+        [0.0, 0.0, 0.97],  # 3 cm above the floor: the floor's relief
+        [0.0, 0.1, 0.1],   # 0.9 m up: 0.1 m under the camera, its strap
+    ])  # fmt: skip
+    assert leg_fraction(points, plane.height(points), plane, SceneParams()) == 0.25
