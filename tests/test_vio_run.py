@@ -366,7 +366,7 @@ def test_a_sheet_far_from_the_prediction_is_searched_and_given_to_the_smoother(
     assert taken.used["tag_smoother_only"] == len(searched) and taken.used["tag"] == 0
     never = run("filter.full_search_every=0")
     assert not searched and never.used["tag_smoother_only"] == 0
-    refused = run("filter.odometry_scale_std=0")
+    refused = run("filter.odometry_scale_std=0", "smoother.enabled=false")  # the filter's
     assert refused.used["tag_smoother_only"] == 0
     assert refused.skipped["tag"]["outside the chi2 gate"] == len(searched) > 0
     moved = taken.T_WfromC[-1, 0, 3] - never.T_WfromC[-1, 0, 3]
@@ -406,6 +406,7 @@ def test_a_sheet_refused_steadily_frame_after_frame_is_taken_after_widening(
     monkeypatch.setattr(apriltags, "detect_board_pose", decoded)
 
     def run(*keys: str):
+        keys = ("smoother.enabled=false", *keys)  # the filter's own counts and poses
         cfg = load_config(VioConfig, None, ["filter.odometry_scale_std=0", *keys])
         return run_vio(source, cfg)
 
