@@ -33,6 +33,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import csv  # noqa: E402
 import time  # noqa: E402
+from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -334,6 +335,9 @@ def run_session(session: Path, args: argparse.Namespace, rng: np.random.Generato
         ),
         "+ marker offset (all)": PoseCorrectionParams(contact_weighting=True),
         "all but contact weighting (the default)": PoseCorrectionParams(),
+        "the default by scipy L-BFGS-B (correction.solver lbfgs)": PoseCorrectionParams(
+            solver="lbfgs"
+        ),
         "default without robust loss": PoseCorrectionParams(robust_foot=False),
         "default without flat stance feet": PoseCorrectionParams(flat_foot_contact=False),
     }
@@ -382,6 +386,9 @@ def run_session(session: Path, args: argparse.Namespace, rng: np.random.Generato
     print(report(skel, truth, idx[sub], name, lb_pose, lb_trans, wall, cpu))
     pose, trans, wall, cpu = timed_per_frame(priors, m, skel, par)
     name = "LM, thesis objective (eq. 4.8, squared)"
+    print(report(skel, truth, idx[sub], name, pose, trans, wall, cpu))
+    pose, trans, wall, cpu = timed_per_frame(priors, m, skel, replace(par, solver="lbfgs"))
+    name = "scipy L-BFGS-B, thesis objective (squared; correction.solver lbfgs)"
     print(report(skel, truth, idx[sub], name, pose, trans, wall, cpu))
 
 

@@ -29,6 +29,7 @@ from gaitnet.pipeline.pose_correction import (
     correct_pose,
     correct_poses,
     skeleton_with_lengths,
+    step_cost_and_gradient,
 )
 from gaitnet.pipeline.pose_residuals import (
     ChainGeometry,
@@ -191,6 +192,43 @@ def test_robust_gradient_central_differences(fixed: bool) -> None:
             evaluate(pb, retract(s, d), False)[2] - evaluate(pb, retract(s, -d), False)[2]
         ) / (2 * h)
         assert grad[k] == pytest.approx(numeric[0], rel=1e-5, abs=1e-3 * max(1.0, cost[0]) ** 0.5)
+
+
+@pytest.mark.parametrize("fixed", [True, False])
+def test_lbfgs_gradient_over_the_step_central_differences(fixed: bool) -> None:
+    """The L-BFGS solver's gradient over the step from the start, at a step that turns the root
+    by 0.5 rad (where the root's right Jacobian matters), against central differences."""
+    par = PoseCorrectionParams(fixed_lengths=fixed, robust_foot=True, cauchy_scale_m=0.03)
+    pb, s = _random_problem(par, 7)
+    n = pb.n_params
+    step = np.random.default_rng(3).normal(0, 0.05, (1, n))
+    step[0, :3] = [0.3, -0.3, 0.2]
+    cost, grad = step_cost_and_gradient(pb, s, step)
+    h = 1e-6
+    for k in range(n):
+        d = np.zeros((1, n))
+        d[0, k] = h
+        numeric = (
+            step_cost_and_gradient(pb, s, step + d)[0] - step_cost_and_gradient(pb, s, step - d)[0]
+        ) / (2 * h)
+        assert grad[0, k] == pytest.approx(
+            numeric[0], rel=1e-5, abs=1e-3 * max(1.0, cost[0]) ** 0.5
+        )
+
+
+def test_lbfgs_reaches_the_levenberg_marquardt_minimum() -> None:
+    """Both solvers minimise the same objective: given iterations enough, L-BFGS ends where
+    Levenberg–Marquardt does."""
+    prior, m = _scenario()
+    tight = PoseCorrectionParams(max_iterations=200, cost_tolerance=1e-14, step_tolerance=1e-12)
+    lm, info_lm = correct_pose(prior, m, SKEL, tight)
+    lbfgs, info_bfgs = correct_pose(
+        prior, m, SKEL, PoseCorrectionParams(solver="lbfgs", lbfgs_max_iterations=2000)
+    )
+    assert info_bfgs.cost_after[0] == pytest.approx(info_lm.cost_after[0], rel=1e-6)
+    assert info_bfgs.cost_after[0] < 0.5 * info_bfgs.cost_before[0]
+    np.testing.assert_allclose(lbfgs.pose, lm.pose, atol=1e-4)
+    np.testing.assert_allclose(lbfgs.trans, lm.trans, atol=1e-5)
 
 
 # --- known answers --------------------------------------------------------------------------
@@ -407,9 +445,15 @@ CHANGES = {
     "max_iterations": 1,
     "step_tolerance": 1.0,
     "cost_tolerance": 0.5,
+    "solver": "lbfgs",
+    "lbfgs_max_iterations": 1,
 }
 # Keys that only act together with another switch.
-NEEDS = {"sigma_bone_m": {"fixed_lengths": False}, "contact_gain": {"contact_weighting": True}}
+NEEDS = {
+    "sigma_bone_m": {"fixed_lengths": False},
+    "contact_gain": {"contact_weighting": True},
+    "lbfgs_max_iterations": {"solver": "lbfgs"},
+}
 
 
 def test_every_parameter_is_tested() -> None:

@@ -7,8 +7,9 @@ on the foot terms, contact weighting of the foot terms and an ankle-to-marker of
 switches of :class:`~gaitnet.pipeline.pose_types.PoseCorrectionParams`. The objective is a
 sum of squared residuals (:mod:`gaitnet.pipeline.pose_residuals`, analytic Jacobians), solved
 by a small batched Levenberg-Marquardt in numpy instead of the thesis's L-BFGS (0.3 s per
-frame): about a millisecond per frame (docs/pose-correction.md has the objective, the
-parameters and the measured speed and accuracy).
+frame): about a millisecond per frame. ``solver: lbfgs`` runs scipy's L-BFGS-B on the same
+objective and gradient instead (docs/pose-correction.md has the objective, the parameters and
+the measured speed and accuracy of both).
 """
 
 from __future__ import annotations
@@ -183,6 +184,46 @@ def _levenberg_marquardt(
     return s, cost0, cost, iterations
 
 
+def step_cost_and_gradient(
+    pb: Problem, s0: ChainState, step: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Each frame's cost at ``retract(s0, step)`` and its gradient over ``step`` (B, n): the
+    exact gradient ``2 Jᵀ r`` of :func:`~gaitnet.pipeline.pose_residuals.evaluate`, carried to
+    the root's step through its right Jacobian (``exp(δ + h) ≈ exp(δ) exp(J_r(δ) h)``)."""
+    r, J, cost = evaluate(pb, retract(s0, step))
+    grad = 2.0 * np.einsum("bmi,bm->bi", J, r)
+    _, Jr = exp_and_right_jacobian(step[:, 0:3])
+    grad[:, 0:3] = np.einsum("bij,bi->bj", Jr, grad[:, 0:3])
+    return cost, grad
+
+
+def _lbfgs(
+    pb: Problem, s0: ChainState
+) -> tuple[ChainState, FloatArray, FloatArray, NDArray[np.int64]]:
+    """scipy's L-BFGS-B (the thesis's solver, sec. 4.2.4) on the same objective, over the step
+    from the start (:func:`step_cost_and_gradient`), every frame at once (independent frames:
+    their costs add up), at most ``lbfgs_max_iterations`` iterations (the thesis: 25)."""
+    from scipy.optimize import minimize
+
+    B, n = s0.t.shape[0], pb.n_params
+    cost0 = evaluate(pb, s0, jac=False)[2]
+
+    def total(x: FloatArray) -> tuple[float, FloatArray]:
+        cost, grad = step_cost_and_gradient(pb, s0, x.reshape(B, n))
+        return float(cost.sum()), grad.ravel()
+
+    result = minimize(
+        total,
+        np.zeros(B * n),
+        jac=True,
+        method="L-BFGS-B",
+        options={"maxiter": pb.params.lbfgs_max_iterations, "ftol": 1e-12, "gtol": 1e-9},
+    )
+    s = retract(s0, result.x.reshape(B, n))
+    cost = evaluate(pb, s, jac=False)[2]
+    return s, cost0, cost, np.full(B, int(result.nit), dtype=np.int64)
+
+
 def correct_poses(
     priors: Sequence[PoseState],
     measurements: Sequence[FrameMeasurements],
@@ -197,7 +238,8 @@ def correct_poses(
     """
     params = params or PoseCorrectionParams()
     pb, s0 = _problem(priors, measurements, skeleton, params)
-    s, cost0, cost, iterations = _levenberg_marquardt(pb, s0)
+    solve = _lbfgs if params.solver == "lbfgs" else _levenberg_marquardt
+    s, cost0, cost, iterations = solve(pb, s0)
     root, _ = log_and_right_jacobian_inv(s.R0)
     poses = [
         PoseState(pose=np.concatenate([root[i], s.a[i].ravel()]), trans=s.t[i])

@@ -130,6 +130,10 @@ class FrameMeasurements:
         return ~np.isnan(self.foot_W[:, 0])
 
 
+SOLVERS = ("lm", "lbfgs")
+"""``solver``: Levenberg–Marquardt (default), or scipy's L-BFGS-B, the thesis's solver."""
+
+
 @dataclass(frozen=True)
 class PoseCorrectionParams:
     """Weights and switches of the correction (docs/pose-correction.md has the objective).
@@ -162,6 +166,8 @@ class PoseCorrectionParams:
     max_iterations: int = 10
     step_tolerance: float = 1e-5
     cost_tolerance: float = 1e-4
+    solver: str = "lm"
+    lbfgs_max_iterations: int = 25
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -184,6 +190,14 @@ class PoseCorrectionParams:
             raise InputError("pose correction rom_deg: must be 6 × 3 (low, high) pairs, low ≤ high")
         if not (isinstance(self.max_iterations, int) and 1 <= self.max_iterations <= 1000):
             raise InputError("pose correction max_iterations: must be an integer in 1..1000")
+        if self.solver not in SOLVERS:
+            raise InputError(
+                f"pose correction solver: must be one of {SOLVERS}, got {self.solver!r}"
+            )
+        if not (
+            isinstance(self.lbfgs_max_iterations, int) and 1 <= self.lbfgs_max_iterations <= 10000
+        ):
+            raise InputError("pose correction lbfgs_max_iterations: must be an integer in 1..10000")
         for name in ("step_tolerance", "cost_tolerance"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
