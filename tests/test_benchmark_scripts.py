@@ -46,6 +46,7 @@ def test_a_bad_option_is_one_line(script: str) -> None:
         "bench_swing_errors.py",
         "bench_png.py",
         "bench_real_motion.py",
+        "bench_profile.py",
     ],
 )
 def test_a_missing_input_is_one_line(tmp_path: Path, script: str) -> None:
