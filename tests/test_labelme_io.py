@@ -98,3 +98,22 @@ def test_holes_and_unsided_regions_round_trip(tmp_path: Path) -> None:
     assert cls[60, 60] == 0
     for value in (0, 1, 2):
         assert iou(cls == value, labels == value) > 0.95
+
+
+def test_a_hole_with_a_region_inside_is_not_painted_over_it(tmp_path: Path) -> None:
+    """A foot inside the hole of a leg ring survives (the hole stays the leg's), and a foot
+    ring's empty hole is background again."""
+    labels = np.zeros((100, 120), np.uint8)
+    cv2.circle(labels, (50, 50), 40, 2, -1)
+    cv2.circle(labels, (50, 50), 15, 0, -1)
+    cv2.circle(labels, (50, 50), 5, 1, -1)
+    cv2.circle(labels, (100, 30), 12, 1, -1)
+    cv2.circle(labels, (100, 30), 5, 0, -1)
+    cv2.imwrite(str(tmp_path / "f.png"), np.zeros((100, 120, 3), np.uint8))
+    doc = labelme_document(labels, np.zeros(labels.shape, np.int32), "f.png")
+    assert [s["label"] for s in doc["shapes"]] == ["leg", "foot", "foot", "_background_"]
+    (tmp_path / "f.json").write_text(json.dumps(doc))
+    cls, _, _ = read_labelme(tmp_path / "f.json")
+    assert cls[50, 50] == 1 and iou(cls == 1, labels == 1) > 0.9
+    assert cls[30, 100] == 0
+    assert cls[50, 38] == 2  # the leg's hole around the foot stays the leg's

@@ -77,14 +77,23 @@ def _outlines(mask: np.ndarray, min_area_px: float) -> tuple[list, list[list[lis
 
 
 def _polygons(
-    mask: np.ndarray, min_area_px: float
+    mask: np.ndarray, min_area_px: float, background: np.ndarray
 ) -> tuple[list[list[list[float]]], list[list[list[float]]]]:
-    """The outlines of ``mask``'s regions, and the outlines of the holes inside them (the
-    pixels the filled outlines cover that are not ``mask``'s)."""
+    """The outlines of ``mask``'s regions, and the outlines of the holes inside them that hold
+    ``background`` pixels alone (the pixels the filled outlines cover that are not ``mask``'s;
+    a hole with anything else inside stays filled, so that painting it as background cannot
+    erase a region drawn before it)."""
     contours, outer = _outlines(mask, min_area_px)
     filled = np.zeros(mask.shape, np.uint8)
     cv2.drawContours(filled, contours, -1, 1, thickness=cv2.FILLED)
-    _, holes = _outlines((filled > 0) & ~mask.astype(bool), min_area_px)
+    hole_contours, hole_points = _outlines((filled > 0) & ~mask.astype(bool), min_area_px)
+    holes = []
+    for contour, points in zip(hole_contours, hole_points, strict=True):
+        x, y, w, h = cv2.boundingRect(contour)
+        inside = np.zeros((h, w), np.uint8)
+        cv2.drawContours(inside, [contour], -1, 1, thickness=cv2.FILLED, offset=(-x, -y))
+        if background[y : y + h, x : x + w][inside > 0].all():
+            holes.append(points)
     return outer, holes
 
 
@@ -95,8 +104,9 @@ def labelme_document(
     min_area_px: float = 4.0,
 ) -> dict:
     """A labelme JSON document (dict) with one polygon per connected region of each class,
-    followed by a ``_background_`` polygon per hole in those regions (labelme polygons have no
-    holes; painted in order, the hole is background again unless a later shape covers it).
+    followed by a ``_background_`` polygon per hole in those regions that holds background
+    alone (labelme polygons have no holes; painted in order, the hole is background again; a
+    hole with another region inside stays filled with its region's class).
 
     ``group_id`` is 1 for the left and 2 for the right side (from ``instances``); regions of
     side 0 (unknown) have none.
@@ -106,7 +116,7 @@ def labelme_document(
         value = CLASS_VALUES[name]
         for group_id in (*sorted(INSTANCE_GROUPS), 0):
             mask = (labels == value) & (instances == group_id)
-            outer, holes = _polygons(mask, min_area_px)
+            outer, holes = _polygons(mask, min_area_px, labels == 0)
             for label, polygons in ((name, outer), ("_background_", holes)):
                 shapes += [
                     {

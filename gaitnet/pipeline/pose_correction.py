@@ -234,7 +234,9 @@ def correct_poses(
 
     Frame ``i`` starts from ``priors[i]`` (the predictor's pose; its ``trans`` a prior for the
     root position, weak by default) and is pulled towards ``measurements[i]``. Frames do not
-    interact; :func:`correct_pose` is the one-frame form used in the predict-correct loop.
+    interact (with ``solver: lbfgs`` they share one L-BFGS-B solve over their summed cost, so
+    its stopping test and iteration cap are the batch's); :func:`correct_pose` is the one-frame
+    form used in the predict-correct loop.
     """
     params = params or PoseCorrectionParams()
     pb, s0 = _problem(priors, measurements, skeleton, params)

@@ -36,8 +36,11 @@ is wrong, each as one short phrase:
   missed); a floor seen from a tripod, a hand or a table edge shows nothing there.
 
 The checks run on the best of the first ``n_frames`` frames (the one whose floor has the most
-inliers). The thresholds are far from what simulated waist-camera walks show (height 0.97–1.16 m,
-floor 91–96 % of the points, none below it, legs 1.1–2.4 %; docs/vio.md *Scene check*).
+inliers). The thresholds are far from what simulated waist-camera walks at the default pitch
+(70°) show: height 0.97–1.16 m, floor 91–96 % of the points, none below it, legs 1.1–2.4 %
+(docs/vio.md *Scene check*). The legs check is closest at flat pitches: 0.2–0.3 % at 60°
+against its 0.1 %, and a camera pitched 55° or flatter is refused by it even though the pitch
+check accepts 50°.
 """
 
 from __future__ import annotations
