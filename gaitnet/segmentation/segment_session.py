@@ -223,6 +223,29 @@ class FrameSegmenter:
             )
 
 
+def _keypoint_rows(t_ns: int, feet: list[FootDetection]) -> list[dict[str, object]]:
+    """The ``keypoints.csv`` rows (:data:`KEYPOINT_COLUMNS`) of one frame's feet."""
+    rows: list[dict[str, object]] = []
+    for foot in feet:
+        for name, (u, v) in foot.keypoints_px.items():
+            p = foot.keypoints_C.get(name)
+            ok = p is not None
+            rows.append(
+                {
+                    "t_ns": t_ns,
+                    "side": foot.side,
+                    "keypoint": name,
+                    "u": f"{u:.2f}",
+                    "v": f"{v:.2f}",
+                    "x_m": f"{p[0]:.5f}" if ok else "",
+                    "y_m": f"{p[1]:.5f}" if ok else "",
+                    "z_m": f"{p[2]:.5f}" if ok else "",
+                    "depth_valid": int(ok),
+                }
+            )
+    return rows
+
+
 def segment_session(
     session: SessionSource,
     segmenter: OnnxSegmenter,
@@ -262,23 +285,7 @@ def segment_session(
             (stage / "labels" / f"{frame.t_ns}.png").write_bytes(encode_png(labels))
             counts += np.bincount(labels.ravel(), minlength=3)[:3]
             with_foot += bool(feet)
-            for foot in feet:
-                for name, (u, v) in foot.keypoints_px.items():
-                    p = foot.keypoints_C.get(name)
-                    ok = p is not None
-                    rows.append(
-                        {
-                            "t_ns": frame.t_ns,
-                            "side": foot.side,
-                            "keypoint": name,
-                            "u": f"{u:.2f}",
-                            "v": f"{v:.2f}",
-                            "x_m": f"{p[0]:.5f}" if ok else "",
-                            "y_m": f"{p[1]:.5f}" if ok else "",
-                            "z_m": f"{p[2]:.5f}" if ok else "",
-                            "depth_valid": int(ok),
-                        }
-                    )
+            rows += _keypoint_rows(frame.t_ns, feet)
             if k in sheet_at:
                 sheet.append([_overlay(frame.rgb, labels, feet), colourise_labels(labels)])
                 captions.append(f"t = {frame.t_ns * 1e-9:.2f} s, {len(feet)} foot blob(s)")
