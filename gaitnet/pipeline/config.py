@@ -102,6 +102,17 @@ class PipelineParams:
     foot_keypoint: Literal["top", "mid", "bottom"] = "mid"
     """Which keypoint of eq. 4.1 is a foot's measured point (``mid``: the middle of the visible
     shoe, nearest the instep marker the pose correction's offset points to)."""
+    toe_anchor: bool = True
+    """With ``foot_keypoint: mid``, lay a foot's mid point from its toe (the ``top`` keypoint)
+    where the leg hides the back of the shoe (:mod:`gaitnet.pipeline.toe_anchor`): a real
+    walker's knee flexed through early stance moves the middle of the visible shoe 5–6 cm
+    forward."""
+    toe_anchor_window_s: float = 1.0
+    """The moving average of the camera's heading that turns the standing toe → mid vector
+    (about one stride, so the pelvis's rotation cancels) [s]."""
+    toe_anchor_tolerance_m: float = 0.02
+    """How much shorter along the floor than on the standing shoe the toe → mid vector must be
+    before the mid point is laid from the toe [m]."""
     workers: int = 2
     """Threads that segment frames at once (HHA, the network and the post-processing of
     different frames overlap; each network call uses ``models.threads``)."""
@@ -181,6 +192,8 @@ class PipelineParams:
                 f"pipeline.foot_keypoint must be top, mid or bottom, got {self.foot_keypoint!r}"
             )
         check_int_range("pipeline.workers", self.workers, 1, 64)
+        check_range("pipeline.toe_anchor_window_s", self.toe_anchor_window_s, 0.0, 10.0, " s")
+        check_range("pipeline.toe_anchor_tolerance_m", self.toe_anchor_tolerance_m, 0.0, 0.2, " m")
         check_range("pipeline.min_foot_seen_fraction", self.min_foot_seen_fraction, 0.0, 1.0)
         if self.gap_fill not in ("swing", "bridge", "none"):
             raise ValueError(

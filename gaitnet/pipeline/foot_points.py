@@ -42,8 +42,10 @@ class FrameFeet:
     number of foot blobs, the midpoint of the two feet along the camera's left axis where
     they were sided apart (:func:`gaitnet.segmentation.midline.pair_midpoint`; else None),
     the segmenter's foot pixels before the post-processing (for the filter's second run,
-    ``pipeline.segmented_stances``; None: no foot pixel), and the foot blobs dropped as no
-    foot, by reason (:data:`gaitnet.segmentation.postprocess.DROP_REASONS`)."""
+    ``pipeline.segmented_stances``; None: no foot pixel), the foot blobs dropped as no foot,
+    by reason (:data:`gaitnet.segmentation.postprocess.DROP_REASONS`), and ``top_W`` (2, 3)
+    the ``top`` keypoint (the toe) of the same feet, for :mod:`gaitnet.pipeline.toe_anchor`
+    (NaN where it has no depth)."""
 
     foot_W: np.ndarray
     labels: np.ndarray
@@ -51,6 +53,7 @@ class FrameFeet:
     pair_midpoint_m: float | None = None
     foot_mask: FootMask | None = None
     dropped: Counter = field(default_factory=Counter)
+    top_W: np.ndarray = field(default_factory=lambda: np.full((2, 3), np.nan))
 
 
 def floor_in_camera(T_WfromC: np.ndarray) -> FloorPlane:
@@ -85,6 +88,7 @@ def measure_feet(
         labels, frame.depth_m, K, feet_params, gravity_C=gravity_C, plane=plane, dropped=dropped
     )
     foot_W = np.full((2, 3), np.nan)
+    top_W = np.full((2, 3), np.nan)
     for foot in feet:  # largest first: a side keeps its largest blob
         p_C = foot.keypoints_C.get(keypoint)
         if p_C is None:
@@ -95,6 +99,9 @@ def measure_feet(
             side = SIDES[int(np.argmin(np.linalg.norm(predicted_W - p_W, axis=1)))]
         if side in SIDES and np.isnan(foot_W[SIDES.index(side), 0]):
             foot_W[SIDES.index(side)] = p_W
+            top_C = foot.keypoints_C.get("top")
+            if top_C is not None:
+                top_W[SIDES.index(side)] = T[:3, :3] @ top_C + T[:3, 3]
     return FrameFeet(
         foot_W,
         kept_feet_labels(labels, feet),
@@ -102,4 +109,5 @@ def measure_feet(
         pair_midpoint(feet, feet_params),
         FootMask.from_labels(labels),  # label 1: foot
         dropped,
+        top_W,
     )

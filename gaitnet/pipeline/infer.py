@@ -45,7 +45,7 @@ from gaitnet.io.types import Frame, SessionSource
 from gaitnet.motion.amass import TARGET_FPS
 from gaitnet.motion.onnx_runtime import OnnxPredictor
 from gaitnet.motion.skeleton import LowerBodySkeleton, builtin_skeleton, forward_kinematics
-from gaitnet.pipeline.config import REFERENCE_HEIGHT_M, InferConfig
+from gaitnet.pipeline.config import REFERENCE_HEIGHT_M, InferConfig, PipelineParams
 from gaitnet.pipeline.foot_points import FrameFeet, measure_feet
 from gaitnet.pipeline.foot_sides import reside_measured_feet
 from gaitnet.pipeline.gap_bridge import bridge_gaps, frames_to_bridge
@@ -62,6 +62,7 @@ from gaitnet.pipeline.pose_residuals import ChainGeometry, foot_points
 from gaitnet.pipeline.pose_tracking import track_poses
 from gaitnet.pipeline.pose_types import FrameMeasurements, PoseState, R_PfromSMPL
 from gaitnet.pipeline.swing_fill import swing_fill
+from gaitnet.pipeline.toe_anchor import heading_angles, toe_anchored_points
 from gaitnet.segmentation.midline import MidlineEstimate
 from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
 from gaitnet.segmentation.postprocess import FootKeypointParams
@@ -172,6 +173,7 @@ class Observations:
     segmenter_path: str
     timings_s: dict[str, float] = field(default_factory=dict)
     feet_dropped: Counter = field(default_factory=Counter)
+    toe_W: np.ndarray | None = None
 
 
 def observe(
@@ -207,6 +209,7 @@ def observe(
     workers = cfg.pipeline.workers
     T_filter: list[np.ndarray] = []
     feet_f: list[np.ndarray] = []
+    toes_f: list[np.ndarray] = []
     frame_ns: list[int] = []
     pending: deque[Future] = deque()
 
@@ -227,6 +230,7 @@ def observe(
             t_ns, feet, cpu_s = pending.popleft().result()
             midline.add(feet.pair_midpoint_m, up_C=T_filter[len(feet_f)][2, :3])
             feet_f.append(feet.foot_W)
+            toes_f.append(feet.top_W)
             frame_ns.append(t_ns)
             dropped.update(feet.dropped)
             if feet.foot_mask is not None and cfg.pipeline.segmented_stances:
@@ -275,11 +279,14 @@ def observe(
         timings["filter_segmented"] = time.perf_counter() - t0
     T_f = np.array(T_filter)
     T_move = vio.T_WfromC @ np.linalg.inv(T_f)  # filter pose → smoothed pose, per frame
-    measured = np.einsum("kij,ksj->ksi", T_move[:, :3, :3], np.array(feet_f))
-    measured += T_move[:, None, :3, 3]
-    return Observations(
-        vio, np.array(frame_ns, np.int64), measured, str(segmenter.path), timings, dropped
+    measured, toes = (
+        np.einsum("kij,ksj->ksi", T_move[:, :3, :3], np.array(points)) + T_move[:, None, :3, 3]
+        for points in (feet_f, toes_f)
     )
+    return Observations(
+        vio, np.array(frame_ns, np.int64), measured, str(segmenter.path), timings, dropped,
+        toes,
+    )  # fmt: skip
 
 
 def _run_with_masks(
@@ -324,6 +331,20 @@ def run_infer(
     return reconstruct(obs, cfg, predictor, progress)
 
 
+def _toe_anchored(obs: Observations, params: PipelineParams, n_standing: int) -> np.ndarray:
+    """The measured foot points with those whose shoe back the leg hides laid from the toe
+    (``pipeline.toe_anchor``, :mod:`gaitnet.pipeline.toe_anchor`)."""
+    if not params.toe_anchor or params.foot_keypoint != "mid" or obs.toe_W is None:
+        return obs.foot_W
+    vio = obs.vio
+    psi = heading_angles(vio.T_WfromC, vio.t_s, params.toe_anchor_window_s)
+    points, laid = toe_anchored_points(
+        obs.foot_W, obs.toe_W, psi, n_standing, params.toe_anchor_tolerance_m
+    )
+    log.info("%d measured foot points laid from the toe (the shoe's back hidden)", laid)
+    return points
+
+
 def reconstruct(
     obs: Observations,
     cfg: InferConfig,
@@ -332,19 +353,21 @@ def reconstruct(
 ) -> InferResult:
     """Steps 3–5 (module docstring) from the observations of :func:`observe`."""
     vio, t_ns = obs.vio, obs.t_ns
-    measured, resided = reside_measured_feet(vio.t_s, obs.foot_W, vio.stance_feet)
+    T_WfromC = vio.T_WfromC
+    n_standing = standing_frames(
+        vio.t_s, T_WfromC, cfg.pipeline.standing_s, cfg.pipeline.standing_max_speed_mps
+    )
+    measured, resided = reside_measured_feet(
+        vio.t_s, _toe_anchored(obs, cfg.pipeline, n_standing), vio.stance_feet
+    )
     if resided:
         log.info("%d measured foot points lay at the other foot's rest: given to it", resided)
     timings = dict(obs.timings_s)
     n = len(vio.t_s)
-    T_WfromC = vio.T_WfromC
 
     def bar(stage: str) -> Progress | None:
         return progress(stage) if progress is not None else None
 
-    n_standing = standing_frames(
-        vio.t_s, T_WfromC, cfg.pipeline.standing_s, cfg.pipeline.standing_max_speed_mps
-    )
     height = cfg.pipeline.subject_height_m
     if height == 0:
         camera_height = float(np.median(T_WfromC[:n_standing, 2, 3]))
