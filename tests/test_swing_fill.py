@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from gaitnet.pipeline.gap_bridge import feet_steadily_seen
 from gaitnet.pipeline.swing_fill import (
     MIN_SPAN_S,
     SWING_LIFT,
@@ -18,6 +19,7 @@ from gaitnet.pipeline.swing_fill import (
     SWING_SPAN_PER_CYCLE,
     SWING_START_DELAY_S,
     SWING_TAU,
+    landed_rests,
     plan_swings,
     swing_fill,
 )
@@ -548,13 +550,24 @@ def test_the_start_read_where_the_foot_is_seen_again() -> None:
         (t[k] - true_start) / (2.4 - true_start), SWING_TAU, SWING_PROGRESS
     )
     np.testing.assert_allclose(filled[k, 0, 0], expected, atol=1e-9)
-    # a foot's first pair is never re-timed
+    # a foot's first pair (the step out of standing) is re-timed too: seen in its late swing
+    # on a template laid from 0.62 s, 0.07 s after its rest-end bound
     (first,) = [
         p
         for p in plan_swings(t, measured, feet + right, retime_weight=1.0)
         if p.first and p.side == 0
     ]
     assert first.heel_off_s == pytest.approx(0.6 - SWING_REST_END_LEAD_S)
+    late1 = (t > 1.0) & (t < 1.2)
+    rho1 = np.interp((t[late1] - 0.62) / (1.2 - 0.62), SWING_TAU, SWING_PROGRESS)
+    measured[late1, 0] = np.c_[1.2 * rho1, np.full(late1.sum(), 0.1), np.full(late1.sum(), 0.05)]
+    assert ((rho1 > 0.5) & (rho1 < 0.97)).sum() >= 2
+    (first,) = [
+        p
+        for p in plan_swings(t, measured, feet + right, retime_weight=1.0)
+        if p.first and p.side == 0
+    ]
+    assert first.heel_off_s == pytest.approx(0.62, abs=1e-9)
 
 
 def test_the_foot_rests_at_its_point_through_its_stances_unseen_frames() -> None:
@@ -581,3 +594,46 @@ def test_the_foot_rests_at_its_point_through_its_stances_unseen_frames() -> None
     assert np.isnan(out[third, 0]).all()
     assert np.isnan(out[(t > 1.6 + 1e-9) & (t < 3.6 - 1e-9), 0]).all()
     assert np.isfinite(out[(t > 0.6 + 1e-9) & (t < 1.2 - 1e-9), 0]).all()  # a laid swing
+
+
+def test_a_rest_never_seen_lands_where_its_foot_was_seen_arriving() -> None:
+    """Known answer (:func:`landed_rests`): the third rest (landmark from 2.5 s at x = 2.4)
+    is never measured in its own frames, but the foot was seen arriving from 0.2 s before,
+    first 7 cm above its resting height (still in the air), then 3 cm above and 3.6 cm from
+    where it rests: the rest begins at the first low sighting and rests at the landmark plus
+    the foot's offset (2 cm forward, 1 cm in) at the other rests' height; a sighting 20 cm
+    short of it, or more than the lookback before, is not the landing. Without the sightings
+    the rest has no point."""
+    t = np.arange(150) / FPS
+    measured = np.full((150, 2, 3), np.nan)
+    rests = [(0.0, 0.6, 0.0), (1.2, 1.6, 1.2), (2.5, 2.8, 2.4), (3.6, 4.9, 3.6)]
+    feet = []
+    for i, (t0, t1, x) in enumerate(rests):
+        inside = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
+        if i != 2:
+            measured[inside, 0] = [x + 0.02, 0.09, 0.08]
+        feet.append(_rest("left", t0, t1, x))
+    seen = feet_steadily_seen(measured)
+    plain, plain_points = landed_rests(t, measured, seen, feet)
+    assert id(plain[2]) not in plain_points
+    arriving = (t > 2.3 - 1e-9) & (t < 2.4)  # 2.3, 2.333, 2.367: steadily seen
+    measured[arriving, 0] = [2.40, 0.12, 0.11]
+    measured[int(round(2.3 * FPS)), 0, 2] = 0.15
+    measured[int(round(2.15 * FPS)), 0] = [2.42, 0.09, 0.08]  # before the lookback
+    measured[int(round(2.45 * FPS)), 0] = [2.20, 0.09, 0.08]  # 20 cm short
+    seen = feet_steadily_seen(measured)
+    rests_out, points = landed_rests(t, measured, seen, feet)
+    third = rests_out[2]
+    assert third.t_first_s == pytest.approx(2.3 + 1 / FPS)
+    assert third.t_last_s == pytest.approx(2.8) and third.side == "left"
+    np.testing.assert_allclose(points[id(third)], [2.42, 0.09, 0.08], atol=1e-12)
+    for r, r0 in zip(rests_out, plain, strict=True):  # the others are as they were
+        if r is not third:
+            assert (r.side, r.t_first_s, r.t_last_s) == (r0.side, r0.t_first_s, r0.t_last_s)
+            np.testing.assert_array_equal(points[id(r)], plain_points[id(r0)])
+    out = swing_fill(t, measured, feet, H, rest_end_lead_s=0.0)
+    unseen = (t > 2.4) & (t <= 2.8 + 1e-9) & ~seen[:, 0]
+    np.testing.assert_allclose(out[unseen, 0], np.tile([2.42, 0.09, 0.08], (unseen.sum(), 1)))
+    # the swings either side are laid now: the one before lands at the first low sighting
+    assert np.isfinite(out[(t > 1.6 + 1e-9) & (t < 2.3 - 1e-9) & ~seen[:, 0], 0]).all()
+    assert np.isfinite(out[(t > 2.8 + 1e-9) & (t < 3.6 - 1e-9), 0]).all()

@@ -173,7 +173,7 @@ class PipelineParams:
     the rising heel still giving a stationary point; the re-timing may move the start earlier;
     :mod:`gaitnet.pipeline.swing_fill`, docs/pipeline.md)."""
     swing_retime_weight: float = SWING_RETIME_WEIGHT
-    """For ``gap_fill: swing`` (not a foot's first pair): where the foot is seen again before it
+    """For ``gap_fill: swing`` (a foot's first pair too): where the foot is seen again before it
     lands, the template's time at its measured progress (0.5–0.97 of the way) gives the swing's
     start too (their median); the start moves this share of the way to it (0: off; 0.5: the
     two estimates averaged; :mod:`gaitnet.pipeline.swing_fill`)."""

@@ -60,22 +60,30 @@ shape, which this module lays between the two rests:
   about half that (docs/pipeline.md); on real walks the template fits less well than on
   simulated ones (docs/pipeline.md, *Limits*).
 
-Where the foot is seen again before it lands (not for a foot's first pair), its measured points
-time the swing too: at each steadily seen frame after the start whose progress along
-``p₀ → p₁`` is :data:`RETIME_PROGRESS` (0.5–0.97; the first points back in view lie a few cm
-ahead of the foot, and near the landing the template hardly moves), the template's τ at that
-progress gives the start for the landing fixed; the start moves ``pipeline.swing_retime_weight``
-(:data:`SWING_RETIME_WEIGHT`) of the way to their median, at most
-``pipeline.swing_retime_max_shift_s`` (:data:`SWING_RETIME_MAX_SHIFT_S`), also to before the
-bound that the foot's last resting frame sets. Averaging the two
+Where the foot is seen again before it lands (a foot's first pair too: the step out of
+standing), its measured points time the swing too: at each steadily seen frame after the start
+whose progress along ``p₀ → p₁`` is :data:`RETIME_PROGRESS` (0.5–0.97; the first points back in
+view lie a few cm ahead of the foot, and near the landing the template hardly moves), the
+template's τ at that progress gives the start for the landing fixed; the start moves
+``pipeline.swing_retime_weight`` (:data:`SWING_RETIME_WEIGHT`) of the way to their median, at
+most ``pipeline.swing_retime_max_shift_s`` (:data:`SWING_RETIME_MAX_SHIFT_S`), also to before
+the bound that the foot's last resting frame sets.
+Averaging the two
 estimates lowered the filled frames' error on the 7 held-out and the 23 other sessions of the
 filter's protocol alike (docs/pipeline.md); trusting the points alone raised it.
 
 Only frames where the foot is not steadily seen (:func:`gaitnet.pipeline.gap_bridge.steadily_seen`)
 between the two landmarks are filled, and, through each landmark's own frames where the foot
-is not steadily seen, the foot rests at that landmark's point (:func:`rest_points`; a landmark
-whose foot was never seen has none: its start, which times the landing, is then late, and
-placing it from the landmark laid swings 0.2–0.4 s late on a CMU walk).
+is not steadily seen, the foot rests at that landmark's point (:func:`rest_points`). A
+landmark whose foot was never steadily seen in its own frames (confirmed from a few sightings
+of a toe under a flexed knee) has no such point, and its start, which times the landing, is
+late: where the foot was seen arriving within :data:`LANDING_LOOKBACK_S` before that start,
+within :data:`LANDING_RADIUS_M` of where it rests and :data:`LANDING_HEIGHT_M` above its
+resting height, the rest begins at that sighting and its
+point is the landmark moved by the foot's median offset of rest point from landmark
+(:func:`landed_rests`; CMU walking_06 mirrored: the left foot's NMATE 8.8 → 5.1 cm). Placed
+from the landmark without such a sighting, the swings were laid 0.2–0.4 s late on CMU walks:
+such a landmark is still skipped.
 
 A pair of landmarks is skipped when it cannot be one stride of one foot
 (:data:`CYCLE_RANGE_S`, except a foot's first pair, which may start with standing of any
@@ -90,7 +98,7 @@ filled points as that foot's measurements.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -118,6 +126,10 @@ __all__ = [
     "SWING_SPAN_PER_CONTRALATERAL",
     "SWING_SPAN_PER_CYCLE",
     "SWING_START_DELAY_S",
+    "LANDING_HEIGHT_M",
+    "LANDING_LOOKBACK_S",
+    "LANDING_RADIUS_M",
+    "landed_rests",
     "SWING_TAU",
     "SwingPlan",
     "plan_swings",
@@ -158,6 +170,16 @@ STRIDE_OUTLIER = 1.5  # a stride this many times the typical one spans a missed 
 MIN_REFERENCES = 3  # pairs (other than each foot's first) needed for a typical cycle
 MIN_STRIDE_M = 0.2  # shorter: a shuffle or one stance seen as two, not a swing
 MIN_SPAN_S = 0.05  # a swing's start lies at least this long before its landing [s]
+LANDING_LOOKBACK_S = 0.3
+"""How long before a landmark never seen in its own frames its foot may have been seen
+arriving at it [s] (:func:`landed_rests`): a landmark confirmed from weak sightings of a toe
+starts 0.1–0.3 s after the landing."""
+LANDING_RADIUS_M = 0.08
+"""How close along the floor to where the foot rests a point seen before the landmark's first
+frame must lie to be the foot arriving there [m] (:func:`landed_rests`)."""
+LANDING_HEIGHT_M = 0.04
+"""How far above its resting height that point may lie [m] (:func:`landed_rests`): the heel
+down and the forefoot lowering, not the foot still in the air ahead of its rest."""
 MAX_STRIDE_M = 2.2  # longer than any walking stride
 
 
@@ -224,8 +246,8 @@ def plan_swings(
             f"got {measured.shape}"
         )
     seen = feet_steadily_seen(measured)
-    rests = rests_of(stance_feet)
-    swings = _candidate_swings(t_s, measured, seen, rests)
+    rests, points = landed_rests(t_s, measured, seen, stance_feet)
+    swings = _candidate_swings(rests, points)
     # the typical cycle and stride, from the pairs that are not a foot's first
     reference = [w for w in swings if not w.first]
     typical_cycle = typical_stride = np.nan
@@ -260,7 +282,7 @@ def plan_swings(
             continue
         rest_bound = w.before.t_last_s - rest_end_lead_s
         heel_off = max(timed, rest_bound)
-        if retime_weight > 0 and not w.first:
+        if retime_weight > 0:
             seen_again = _seen_again_start(t_s, measured[:, w.side], seen[:, w.side], w, heel_off)
             if np.isfinite(seen_again):
                 shift = np.clip(seen_again - heel_off, -retime_max_shift_s, retime_max_shift_s)
@@ -298,8 +320,7 @@ def swing_fill(
     # the foot rests at its point through each stance's unseen frames
     measured = np.asarray(measured, dtype=np.float64)
     seen = feet_steadily_seen(measured)
-    rests = rests_of(stance_feet)
-    points = rest_points(t_s, measured, seen, rests)
+    rests, points = landed_rests(t_s, measured, seen, stance_feet)
     for r in rests:
         overlapping = any(
             o is not r
@@ -366,14 +387,11 @@ def _after_other_landing(swing: _Swing, rests: Sequence[Stance]) -> float:
     return t1 - other[0] if len(other) == 1 else float("nan")
 
 
-def _candidate_swings(
-    t_s: np.ndarray, measured: np.ndarray, seen: np.ndarray, rests: Sequence[Stance]
-) -> list[_Swing]:
+def _candidate_swings(rests: Sequence[Stance], points: dict[int, np.ndarray]) -> list[_Swing]:
     """Consecutive rests of each foot that can be one stride (:data:`CYCLE_RANGE_S`, but any
     length for a foot's first pair; :data:`MIN_STRIDE_M`, :data:`MAX_STRIDE_M`) and have
-    measured points."""
+    points (``points``, by ``id`` of the rest)."""
     out = []
-    points = rest_points(t_s, measured, seen, rests)
     for s, side in enumerate(SIDES):
         own = sorted((r for r in rests if r.side == side), key=lambda r: r.t_first_s)
         for i, (before, after) in enumerate(zip(own, own[1:], strict=False)):
@@ -418,3 +436,44 @@ def rest_points(
         if p is not None:
             out[id(r)] = p
     return out
+
+
+def landed_rests(
+    t_s: np.ndarray, measured: np.ndarray, seen: np.ndarray, stance_feet: Sequence[StanceFoot]
+) -> tuple[list[Stance], dict[int, np.ndarray]]:
+    """The rests (:func:`rests_of`) and their points (by ``id`` of the rest), with each rest
+    whose foot was never steadily seen in its own frames landed where its foot was seen
+    arriving (module docstring): where steadily seen points of that foot lie within
+    :data:`LANDING_RADIUS_M` (along the floor) of the landmark moved by the foot's median
+    offset of rest point from landmark and less than :data:`LANDING_HEIGHT_M` above the foot's
+    median rest height, up to :data:`LANDING_LOOKBACK_S` before the
+    landmark's first frame, the rest begins at the first of them and its point is the landmark
+    moved by that offset, at the foot's median rest height. A foot without a measured rest
+    lands none."""
+    rests = rests_of(stance_feet)
+    points = rest_points(t_s, measured, seen, rests)
+    for s, side in enumerate(SIDES):
+        own = [r for r in rests if r.side == side]
+        known = [points[id(r)] for r in own if id(r) in points]
+        if not known:
+            continue
+        offset = np.median(
+            [p[:2] - r.xy for r in own if id(r) in points for p in [points[id(r)]]], axis=0
+        )
+        height = float(np.median([p[2] for p in known]))
+        for r in own:
+            if id(r) in points:
+                continue
+            guess = np.asarray(r.xy, dtype=np.float64) + offset
+            before = seen[:, s] & (t_s >= r.t_first_s - LANDING_LOOKBACK_S) & (t_s < r.t_first_s)
+            near = (
+                before
+                & (np.linalg.norm(measured[:, s, :2] - guess, axis=1) < LANDING_RADIUS_M)
+                & (measured[:, s, 2] - height < LANDING_HEIGHT_M)
+            )
+            if not near.any():
+                continue
+            landed = replace(r, t_first_s=float(t_s[np.flatnonzero(near)[0]]))
+            rests[rests.index(r)] = landed
+            points[id(landed)] = np.array([guess[0], guess[1], height])
+    return rests, points
