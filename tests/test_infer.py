@@ -475,7 +475,7 @@ def test_segmented_stances_run_the_filter_again_with_the_foot_pixels(
     monkeypatch.setattr(infer, "measure_feet", fixed_feet)
     monkeypatch.setattr(infer, "run_vio", recorded)
     keys = [f"pipeline.segmented_stances={str(segmented).lower()}"]
-    cfg = load_config(InferConfig, None, keys)
+    cfg = load_config(InferConfig, None, [*keys, "pipeline.segmented_stances_always=true"])
     obs = infer.observe(open_session(tiny_sim_session), cfg, OnnxSegmenter(tiny_model))
     assert len(calls) == (2 if segmented else 1)
     assert calls[0].get("foot_masks") is None
@@ -489,6 +489,50 @@ def test_segmented_stances_run_the_filter_again_with_the_foot_pixels(
         masks = calls[1]["foot_masks"]
         assert sorted(masks) == sorted(obs.t_ns.tolist())
         assert all(m is mask for m in masks.values())
+
+
+@pytest.mark.parametrize(("missed", "always", "runs"), [(True, False, 2), (False, False, 1),
+                                                       (False, True, 2)])  # fmt: skip
+def test_the_second_run_only_where_a_stance_was_missed(
+    tiny_sim_session: Path, tiny_model: Path, monkeypatch, missed: bool, always: bool, runs: int
+) -> None:
+    """By default the filter runs again with the foot pixels only where its first run's
+    landmarks show a missed stance (:func:`gaitnet.pipeline.stance_gaps.stance_missed`, given
+    the first run's landmarks); ``pipeline.segmented_stances_always`` runs it everywhere."""
+    import gaitnet.pipeline.infer as infer
+    from gaitnet.config import load_config
+    from gaitnet.pipeline.foot_points import FrameFeet
+    from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
+    from gaitnet.vio.feet_segmented import FootMask
+
+    def masked_feet(frame, K, T_WfromC, *args, **kwargs) -> FrameFeet:
+        mask = FootMask((3, 4), np.ones((2, 2), bool))
+        return FrameFeet(np.full((2, 3), np.nan), np.zeros(frame.depth_m.shape, np.uint8), 0,
+                         None, mask)  # fmt: skip
+
+    real_run_vio = infer.run_vio
+    calls: list = []
+    judged: list = []
+
+    def recorded(*args, **kwargs):
+        calls.append(real_run_vio(*args, **kwargs))
+        return calls[-1]
+
+    def judge(stance_feet):
+        judged.append(stance_feet)
+        return missed
+
+    monkeypatch.setattr(infer, "measure_feet", masked_feet)
+    monkeypatch.setattr(infer, "run_vio", recorded)
+    monkeypatch.setattr(infer, "stance_missed", judge)
+    keys = [f"pipeline.segmented_stances_always={str(always).lower()}"]
+    cfg = load_config(InferConfig, None, keys)
+    obs = infer.observe(open_session(tiny_sim_session), cfg, OnnxSegmenter(tiny_model))
+    assert len(calls) == runs
+    assert obs.vio is calls[-1]
+    assert ("filter_segmented" in obs.timings_s) == (runs == 2)
+    if not always:
+        assert judged == [calls[0].stance_feet]
 
 
 def test_a_failed_run_with_the_segmented_feet_keeps_the_first(
@@ -519,7 +563,7 @@ def test_a_failed_run_with_the_segmented_feet_keeps_the_first(
 
     monkeypatch.setattr(infer, "measure_feet", masked_feet)
     monkeypatch.setattr(infer, "run_vio", diverging)
-    cfg = load_config(InferConfig, None, [])
+    cfg = load_config(InferConfig, None, ["pipeline.segmented_stances_always=true"])
     with caplog.at_level(logging.WARNING, logger="gaitnet.pipeline.infer"):
         obs = infer.observe(open_session(tiny_sim_session), cfg, OnnxSegmenter(tiny_model))
     assert obs.vio is first[0]

@@ -121,6 +121,10 @@ class PipelineParams:
     the depth image does not show (a toe in the stereo shadow of the near thigh, under a knee
     flexed in early stance) is a stance landmark too (:mod:`gaitnet.vio.feet_segmented`);
     false: the filter's first run, from depth alone, is the result."""
+    segmented_stances_always: bool = False
+    """With ``segmented_stances``: run the second pass on every session; false: only where
+    the first run's landmarks show a missed stance (:mod:`gaitnet.pipeline.stance_gaps`),
+    since where they hold every stance it has nothing to find."""
     min_foot_seen_fraction: float = 0.2
     """A result where a foot was measured in fewer of the frames than this (either side) is
     marked unreliable (``"reliable": false`` in ``summary.json``): too few plausible feet to

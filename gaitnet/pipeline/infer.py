@@ -61,6 +61,7 @@ from gaitnet.pipeline.pelvis_extrinsic import (
 from gaitnet.pipeline.pose_residuals import ChainGeometry, foot_points
 from gaitnet.pipeline.pose_tracking import track_poses
 from gaitnet.pipeline.pose_types import FrameMeasurements, PoseState, R_PfromSMPL
+from gaitnet.pipeline.stance_gaps import stance_missed
 from gaitnet.pipeline.swing_fill import swing_fill
 from gaitnet.pipeline.toe_anchor import heading_angles, toe_anchored_points
 from gaitnet.segmentation.midline import MidlineEstimate
@@ -187,9 +188,10 @@ def observe(
     with its camera pose, to ``pipeline.workers`` segmentation threads (onnxruntime, OpenCV and
     most of numpy release the GIL) and goes on; HHA takes the filter's gravity and floor. At
     most ``2 × workers`` frames wait, so the filter is held back when the segmenter lags. With
-    ``pipeline.segmented_stances`` the filter then runs again, handed the segmenter's foot
-    pixels of every frame (:func:`gaitnet.vio.run.run_vio` ``foot_masks``), and its second
-    result is the one kept. Each measured foot point is moved from the first run's filter
+    ``pipeline.segmented_stances`` the filter then runs again where its landmarks show a
+    missed stance (:mod:`gaitnet.pipeline.stance_gaps`; on every session with
+    ``pipeline.segmented_stances_always``), handed the segmenter's foot pixels of every frame
+    (:func:`gaitnet.vio.run.run_vio` ``foot_masks``), and its second result is the one kept. Each measured foot point is moved from the first run's filter
     camera pose to the result's (smoothed) one (``T_s T_f⁻¹``: the point stays where it is in
     the camera frame).
 
@@ -273,10 +275,12 @@ def observe(
         raise SessionError(f"the filter processed {n} frame(s); need at least 2")
     if len(feet_f) != n:  # run_vio calls on_frame once per processed frame
         raise RuntimeError(f"segmented {len(feet_f)} frames, the filter processed {n}")
-    if masks:
+    if masks and (cfg.pipeline.segmented_stances_always or stance_missed(vio.stance_feet)):
         t0 = time.perf_counter()
         vio = _run_with_masks(session, cfg, vio, masks, bar("filter, segmented feet"))
         timings["filter_segmented"] = time.perf_counter() - t0
+    elif masks:
+        log.info("the filter's landmarks miss no stance: no second run with the segmented feet")
     T_f = np.array(T_filter)
     T_move = vio.T_WfromC @ np.linalg.inv(T_f)  # filter pose → smoothed pose, per frame
     measured, toes = (
