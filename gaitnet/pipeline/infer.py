@@ -191,9 +191,9 @@ def observe(
     ``pipeline.segmented_stances`` the filter then runs again where its landmarks show a
     missed stance (:mod:`gaitnet.pipeline.stance_gaps`; on every session with
     ``pipeline.segmented_stances_always``), handed the segmenter's foot pixels of every frame
-    (:func:`gaitnet.vio.run.run_vio` ``foot_masks``), and its second result is the one kept. Each measured foot point is moved from the first run's filter
-    camera pose to the result's (smoothed) one (``T_s T_f⁻¹``: the point stays where it is in
-    the camera frame).
+    (:func:`gaitnet.vio.run.run_vio` ``foot_masks``), and its second result is the one kept.
+    Each measured foot point is moved from the first run's filter camera pose to the result's
+    (smoothed) one (``T_s T_f⁻¹``: the point stays where it is in the camera frame).
 
     ``timings_s``: ``filter`` (wall seconds of the filter and smoother, the segmentation
     running beside it), ``segmenter_wait`` (wall seconds spent on the last frames after the

@@ -67,10 +67,9 @@ view lie a few cm ahead of the foot, and near the landing the template hardly mo
 template's τ at that progress gives the start for the landing fixed; the start moves
 ``pipeline.swing_retime_weight`` (:data:`SWING_RETIME_WEIGHT`) of the way to their median, at
 most ``pipeline.swing_retime_max_shift_s`` (:data:`SWING_RETIME_MAX_SHIFT_S`), also to before
-the bound that the foot's last resting frame sets.
-Averaging the two
-estimates lowered the filled frames' error on the 7 held-out and the 23 other sessions of the
-filter's protocol alike (docs/pipeline.md); trusting the points alone raised it.
+the bound that the foot's last resting frame sets. Averaging the two estimates lowered the
+filled frames' error on the 7 held-out and the 23 other sessions of the filter's protocol alike
+(docs/pipeline.md); trusting the points alone raised it.
 
 Only frames where the foot is not steadily seen (:func:`gaitnet.pipeline.gap_bridge.steadily_seen`)
 between the two landmarks are filled, and, through each landmark's own frames where the foot
@@ -79,11 +78,10 @@ landmark whose foot was never steadily seen in its own frames (confirmed from a 
 of a toe under a flexed knee) has no such point, and its start, which times the landing, is
 late: where the foot was seen arriving within :data:`LANDING_LOOKBACK_S` before that start,
 within :data:`LANDING_RADIUS_M` of where it rests and :data:`LANDING_HEIGHT_M` above its
-resting height, the rest begins at that sighting and its
-point is the landmark moved by the foot's median offset of rest point from landmark
-(:func:`landed_rests`; CMU walking_06 mirrored: the left foot's NMATE 8.8 → 5.1 cm). Placed
-from the landmark without such a sighting, the swings were laid 0.2–0.4 s late on CMU walks:
-such a landmark is still skipped.
+resting height, the rest begins at that sighting and its point is the landmark moved by the
+foot's median offset of rest point from landmark (:func:`landed_rests`; CMU walking_06
+mirrored: the left foot's NMATE 8.8 → 2.1 cm). Placed from the landmark without such a
+sighting, the swings were laid 0.2–0.4 s late on CMU walks: such a landmark is still skipped.
 
 A pair of landmarks is skipped when it cannot be one stride of one foot
 (:data:`CYCLE_RANGE_S`, except a foot's first pair, which may start with standing of any
@@ -446,21 +444,19 @@ def landed_rests(
     arriving (module docstring): where steadily seen points of that foot lie within
     :data:`LANDING_RADIUS_M` (along the floor) of the landmark moved by the foot's median
     offset of rest point from landmark and less than :data:`LANDING_HEIGHT_M` above the foot's
-    median rest height, up to :data:`LANDING_LOOKBACK_S` before the
-    landmark's first frame, the rest begins at the first of them and its point is the landmark
+    median rest height, up to :data:`LANDING_LOOKBACK_S` before the landmark's first frame,
+    the rest begins at the first of them and its point is the landmark
     moved by that offset, at the foot's median rest height. A foot without a measured rest
     lands none."""
     rests = rests_of(stance_feet)
     points = rest_points(t_s, measured, seen, rests)
     for s, side in enumerate(SIDES):
         own = [r for r in rests if r.side == side]
-        known = [points[id(r)] for r in own if id(r) in points]
-        if not known:
+        measured_rests = [r for r in own if id(r) in points]
+        if not measured_rests:
             continue
-        offset = np.median(
-            [p[:2] - r.xy for r in own if id(r) in points for p in [points[id(r)]]], axis=0
-        )
-        height = float(np.median([p[2] for p in known]))
+        offset = np.median([points[id(r)][:2] - r.xy for r in measured_rests], axis=0)
+        height = float(np.median([points[id(r)][2] for r in measured_rests]))
         for r in own:
             if id(r) in points:
                 continue
