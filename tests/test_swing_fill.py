@@ -328,13 +328,20 @@ def test_a_long_standing_start_is_filled_only_with_a_typical_cycle() -> None:
     assert np.isnan(swing_fill(t, measured, feet, H)).all()
 
 
-def test_two_pairs_keep_their_own_cycles() -> None:
-    # a standing start and one stride: too few pairs for a typical cycle, so each pair keeps
-    # its own and heel off is clamped to the last rest frame less the lead (1.4 s, then 3.3 s)
+def test_too_few_pairs_for_a_typical_cycle() -> None:
+    # a standing start and one stride: too few pairs for a typical cycle, so the stride keeps
+    # its own (1.2 s) and the standing start, whose own 2.5 s counts the standing, takes the
+    # stride's; heel off is then span(1.2) before the landing, and the stride's is clamped to
+    # its last rest frame less the lead (3.3 s)
     t, measured, feet = _walk([(0.0, 1.4, 0.0), (2.5, 3.3, 1.2), (3.7, 4.5, 2.4)], n=150)
     out = swing_fill(t, measured, feet, H)
-    for k_s, (rest_end, landing, x0) in ((2.0, (1.4, 2.5, 0.0)), (3.5, (3.3, 3.7, 1.2))):
-        start = rest_end - SWING_REST_END_LEAD_S
+    first_start = 2.5 - _span(1.2)
+    assert first_start > 1.4 - SWING_REST_END_LEAD_S
+    second_start = 3.3 - SWING_REST_END_LEAD_S
+    for k_s, (start, landing, x0) in (
+        (2.0, (first_start, 2.5, 0.0)),
+        (3.5, (second_start, 3.7, 1.2)),
+    ):
         expected = np.interp((k_s - start) / (landing - start), SWING_TAU, SWING_PROGRESS)
         np.testing.assert_allclose(
             out[int(round(k_s * FPS)), 0, 0], x0 + 1.2 * expected, atol=1e-12

@@ -19,7 +19,9 @@ shape, which this module lays between the two rests:
   cycle; the typical cycle — the median over both feet's pairs but each foot's first, given
   :data:`MIN_REFERENCES` of them — where the pair's differs from it by more than
   :data:`CYCLE_TOLERANCE`: a standing start, where the first landmark began long before the
-  foot flat, or a landmark first seen late), ``a`` = ``pipeline.swing_span_offset_s``
+  foot flat, or a landmark first seen late; with fewer pairs than that, a foot's first pair
+  takes the median of those there are: on a 3 s CMU walk its own "cycle" of 2.8 s, standing
+  included, started the first swing 0.5 s early), ``a`` = ``pipeline.swing_span_offset_s``
   (:data:`SWING_SPAN_OFFSET_S`) and ``b`` = ``pipeline.swing_span_per_cycle``
   (:data:`SWING_SPAN_PER_CYCLE`): the line through the span that best lays the template over
   each generated swing, against its cycle, at 0.6–1.7 m/s (960 swings,
@@ -253,10 +255,15 @@ def plan_swings(
         typical_cycle = float(np.median([w.cycle_s for w in reference]))
         typical_stride = float(np.median([w.stride_m for w in reference]))
     plans = []
+    # with fewer references than a typical cycle needs (a short walk), a foot's first pair
+    # takes their median: its own "cycle" counts the standing before the step
+    few = float(np.median([w.cycle_s for w in reference])) if reference else np.nan
     for w in swings:
         cycle = w.cycle_s
         if not np.isfinite(typical_cycle):
-            if cycle > CYCLE_RANGE_S[1]:
+            if w.first and np.isfinite(few):
+                cycle = few
+            elif cycle > CYCLE_RANGE_S[1]:
                 continue  # a long standing start, and no typical cycle to stand in for it
         else:
             if w.stride_m > STRIDE_OUTLIER * typical_stride:
