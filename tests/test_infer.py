@@ -491,6 +491,16 @@ def test_segmented_stances_run_the_filter_again_with_the_foot_pixels(
         assert all(m is mask for m in masks.values())
 
 
+def _masked_feet(frame, K, T_WfromC, *args, **kwargs):
+    """A ``measure_feet`` stand-in: no foot point, a 2 × 2 patch of foot pixels."""
+    from gaitnet.pipeline.foot_points import FrameFeet
+    from gaitnet.vio.feet_segmented import FootMask
+
+    mask = FootMask((3, 4), np.ones((2, 2), bool))
+    return FrameFeet(np.full((2, 3), np.nan), np.zeros(frame.depth_m.shape, np.uint8), 0,
+                     None, mask)  # fmt: skip
+
+
 @pytest.mark.parametrize(("missed", "always", "runs"), [(True, False, 2), (False, False, 1),
                                                        (False, True, 2)])  # fmt: skip
 def test_the_second_run_only_where_a_stance_was_missed(
@@ -501,14 +511,7 @@ def test_the_second_run_only_where_a_stance_was_missed(
     the first run's landmarks); ``pipeline.segmented_stances_always`` runs it everywhere."""
     import gaitnet.pipeline.infer as infer
     from gaitnet.config import load_config
-    from gaitnet.pipeline.foot_points import FrameFeet
     from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
-    from gaitnet.vio.feet_segmented import FootMask
-
-    def masked_feet(frame, K, T_WfromC, *args, **kwargs) -> FrameFeet:
-        mask = FootMask((3, 4), np.ones((2, 2), bool))
-        return FrameFeet(np.full((2, 3), np.nan), np.zeros(frame.depth_m.shape, np.uint8), 0,
-                         None, mask)  # fmt: skip
 
     real_run_vio = infer.run_vio
     calls: list = []
@@ -522,7 +525,7 @@ def test_the_second_run_only_where_a_stance_was_missed(
         judged.append(stance_feet)
         return missed
 
-    monkeypatch.setattr(infer, "measure_feet", masked_feet)
+    monkeypatch.setattr(infer, "measure_feet", _masked_feet)
     monkeypatch.setattr(infer, "run_vio", recorded)
     monkeypatch.setattr(infer, "stance_missed", judge)
     keys = [f"pipeline.segmented_stances_always={str(always).lower()}"]
@@ -542,15 +545,8 @@ def test_a_failed_run_with_the_segmented_feet_keeps_the_first(
     run's result, with a warning saying so."""
     import gaitnet.pipeline.infer as infer
     from gaitnet.config import load_config
-    from gaitnet.pipeline.foot_points import FrameFeet
     from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
     from gaitnet.vio.errors import FilterDivergedError
-    from gaitnet.vio.feet_segmented import FootMask
-
-    def masked_feet(frame, K, T_WfromC, *args, **kwargs) -> FrameFeet:
-        mask = FootMask((3, 4), np.ones((2, 2), bool))
-        return FrameFeet(np.full((2, 3), np.nan), np.zeros(frame.depth_m.shape, np.uint8), 0,
-                         None, mask)  # fmt: skip
 
     real_run_vio = infer.run_vio
     first: list = []
@@ -561,7 +557,7 @@ def test_a_failed_run_with_the_segmented_feet_keeps_the_first(
         first.append(real_run_vio(*args, **kwargs))
         return first[-1]
 
-    monkeypatch.setattr(infer, "measure_feet", masked_feet)
+    monkeypatch.setattr(infer, "measure_feet", _masked_feet)
     monkeypatch.setattr(infer, "run_vio", diverging)
     cfg = load_config(InferConfig, None, ["pipeline.segmented_stances_always=true"])
     with caplog.at_level(logging.WARNING, logger="gaitnet.pipeline.infer"):

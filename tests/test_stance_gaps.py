@@ -48,12 +48,7 @@ def test_a_foot_whose_cycle_doubles_misses_one_even_when_sides_alternate() -> No
     """Known answer: the left foot's stride from 2.75 to 5.05 s (2.3 s, over 1.5 typical
     cycles of 1.1 s) spans a missed left stance although the sides alternate."""
     walk = [
-        _foot("left", 0.1, 1.8, 0.0),
-        _foot("right", 0.1, 1.6, 0.0),
-        _foot("right", 2.2, 2.6, 0.7),
-        _foot("left", 2.75, 3.15, 1.4),
-        _foot("right", 3.3, 3.7, 2.1),
-        _foot("left", 3.85, 4.25, 2.8),
+        *_walk()[:6],
         _foot("right", 4.4, 4.8, 3.5),
         _foot("left", 6.15, 6.5, 4.9),
         _foot("right", 6.6, 8.0, 5.2),

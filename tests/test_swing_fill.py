@@ -577,21 +577,30 @@ def test_the_start_read_where_the_foot_is_seen_again() -> None:
     assert first.heel_off_s == pytest.approx(0.62, abs=1e-9)
 
 
-def test_the_foot_rests_at_its_point_through_its_stances_unseen_frames() -> None:
-    """Known answer: the frames of a stance where the segmenter lost the foot (here one frame
-    of the standing start and three of a later rest) are filled with the rest's median
-    measured point; a rest never seen is not placed (its frames, and the swings either side of
-    it, are left to the predictor: the landmark's start, which times the landing, is late
-    for such a foot)."""
+def _third_rest_unseen(
+    third_start_s: float,
+) -> tuple[np.ndarray, np.ndarray, list[StanceFoot]]:
+    """Four left rests (the third from ``third_start_s`` to 2.8 s at x = 2.4), each but the
+    third measured 2 cm ahead of and 1 cm inside its landmark, 8 cm up; 150 frames at 30/s."""
     t = np.arange(150) / FPS
     measured = np.full((150, 2, 3), np.nan)
-    rests = [(0.0, 0.6, 0.0), (1.2, 1.6, 1.2), (2.4, 2.8, 2.4), (3.6, 4.9, 3.6)]
+    rests = [(0.0, 0.6, 0.0), (1.2, 1.6, 1.2), (third_start_s, 2.8, 2.4), (3.6, 4.9, 3.6)]
     feet = []
     for i, (t0, t1, x) in enumerate(rests):
         inside = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
         if i != 2:
             measured[inside, 0] = [x + 0.02, 0.09, 0.08]
         feet.append(_rest("left", t0, t1, x))
+    return t, measured, feet
+
+
+def test_the_foot_rests_at_its_point_through_its_stances_unseen_frames() -> None:
+    """Known answer: the frames of a stance where the segmenter lost the foot (here one frame
+    of the standing start and three of a later rest) are filled with the rest's median
+    measured point; a rest never seen is not placed (its frames, and the swings either side of
+    it, are left to the predictor: the landmark's start, which times the landing, is late
+    for such a foot)."""
+    t, measured, feet = _third_rest_unseen(2.4)
     lost = [int(0.3 * FPS), int(1.3 * FPS), int(1.4 * FPS), int(1.5 * FPS)]
     measured[lost, 0] = np.nan
     out = swing_fill(t, measured, feet, H, rest_end_lead_s=0.0)
@@ -611,15 +620,7 @@ def test_a_rest_never_seen_lands_where_its_foot_was_seen_arriving() -> None:
     the foot's offset (2 cm forward, 1 cm in) at the other rests' height; a sighting 20 cm
     short of it, or more than the lookback before, is not the landing. Without the sightings
     the rest has no point."""
-    t = np.arange(150) / FPS
-    measured = np.full((150, 2, 3), np.nan)
-    rests = [(0.0, 0.6, 0.0), (1.2, 1.6, 1.2), (2.5, 2.8, 2.4), (3.6, 4.9, 3.6)]
-    feet = []
-    for i, (t0, t1, x) in enumerate(rests):
-        inside = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
-        if i != 2:
-            measured[inside, 0] = [x + 0.02, 0.09, 0.08]
-        feet.append(_rest("left", t0, t1, x))
+    t, measured, feet = _third_rest_unseen(2.5)
     seen = feet_steadily_seen(measured)
     plain, plain_points = landed_rests(t, measured, seen, feet)
     assert id(plain[2]) not in plain_points

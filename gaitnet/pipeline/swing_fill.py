@@ -248,30 +248,12 @@ def plan_swings(
     seen = feet_steadily_seen(measured)
     rests, points = landed_rests(t_s, measured, seen, stance_feet)
     swings = _candidate_swings(rests, points)
-    # the typical cycle and stride, from the pairs that are not a foot's first
-    reference = [w for w in swings if not w.first]
-    typical_cycle = typical_stride = np.nan
-    if len(reference) >= MIN_REFERENCES:
-        typical_cycle = float(np.median([w.cycle_s for w in reference]))
-        typical_stride = float(np.median([w.stride_m for w in reference]))
+    cycles = _swing_cycles(swings)
     plans = []
-    # with fewer references than a typical cycle needs (a short walk), a foot's first pair
-    # takes their median: its own "cycle" counts the standing before the step
-    few = float(np.median([w.cycle_s for w in reference])) if reference else np.nan
     for w in swings:
-        cycle = w.cycle_s
-        if not np.isfinite(typical_cycle):
-            if w.first and np.isfinite(few):
-                cycle = few
-            elif cycle > CYCLE_RANGE_S[1]:
-                continue  # a long standing start, and no typical cycle to stand in for it
-        else:
-            if w.stride_m > STRIDE_OUTLIER * typical_stride:
-                continue  # two strides: a rest between them was missed
-            if abs(cycle - typical_cycle) > CYCLE_TOLERANCE * typical_cycle:
-                if cycle > typical_cycle and not w.first:
-                    continue  # likewise
-                cycle = typical_cycle  # a standing start, or a rest first seen late
+        cycle = cycles.get(id(w))
+        if cycle is None:
+            continue
         span_s = span_offset_s + span_per_cycle * cycle
         to_landing = _after_other_landing(w, rests)
         if (
@@ -306,6 +288,38 @@ def plan_swings(
             )
         )
     return plans
+
+
+def _swing_cycles(swings: Sequence[_Swing]) -> dict[int, float]:
+    """The gait cycle each swing is timed by (module docstring), by ``id`` of the swing; a
+    swing that spans a missed rest, or a long standing start with no typical cycle to stand
+    in for it, has none."""
+    # the typical cycle and stride, from the pairs that are not a foot's first
+    reference = [w for w in swings if not w.first]
+    typical_cycle = typical_stride = np.nan
+    if len(reference) >= MIN_REFERENCES:
+        typical_cycle = float(np.median([w.cycle_s for w in reference]))
+        typical_stride = float(np.median([w.stride_m for w in reference]))
+    # with fewer references than a typical cycle needs (a short walk), a foot's first pair
+    # takes their median: its own "cycle" counts the standing before the step
+    few = float(np.median([w.cycle_s for w in reference])) if reference else np.nan
+    out: dict[int, float] = {}
+    for w in swings:
+        cycle = w.cycle_s
+        if not np.isfinite(typical_cycle):
+            if w.first and np.isfinite(few):
+                cycle = few
+            elif cycle > CYCLE_RANGE_S[1]:
+                continue  # a long standing start, and no typical cycle to stand in for it
+        else:
+            if w.stride_m > STRIDE_OUTLIER * typical_stride:
+                continue  # two strides: a rest between them was missed
+            if abs(cycle - typical_cycle) > CYCLE_TOLERANCE * typical_cycle:
+                if cycle > typical_cycle and not w.first:
+                    continue  # likewise
+                cycle = typical_cycle  # a standing start, or a rest first seen late
+        out[id(w)] = cycle
+    return out
 
 
 def swing_fill(
