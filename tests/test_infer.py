@@ -538,6 +538,36 @@ def test_the_second_run_only_where_a_stance_was_missed(
         assert judged == [calls[0].stance_feet]
 
 
+@pytest.mark.parametrize("hidden", [True, False])
+def test_hidden_stances_key_lays_them_on_the_final_result(
+    tiny_sim_session: Path, tiny_model: Path, monkeypatch, hidden: bool
+) -> None:
+    """``pipeline.hidden_stances`` hands the filter's final result, with
+    ``pipeline.step_dip_m`` and the stance tracker's line window, to
+    :func:`gaitnet.pipeline.hidden_stances.with_hidden_stances`, whose result is kept;
+    false: the filter's landmarks only."""
+    import gaitnet.pipeline.infer as infer
+    from gaitnet.config import load_config
+    from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
+
+    calls: list = []
+
+    def laid(vio, min_dip_m, line_window_s, limits):
+        calls.append((vio, min_dip_m, line_window_s, limits))
+        return replace(vio, initialisation_note="with hidden stances")
+
+    monkeypatch.setattr(infer, "measure_feet", _masked_feet)
+    monkeypatch.setattr(infer, "with_hidden_stances", laid)
+    keys = [f"pipeline.hidden_stances={str(hidden).lower()}", "pipeline.step_dip_m=0.02",
+            "vio.stance.line_window_s=0.4", "pipeline.segmented_stances=false"]  # fmt: skip
+    cfg = load_config(InferConfig, None, keys)
+    obs = infer.observe(open_session(tiny_sim_session), cfg, OnnxSegmenter(tiny_model))
+    assert len(calls) == int(hidden)
+    assert (obs.vio.initialisation_note == "with hidden stances") == hidden
+    if hidden:
+        assert calls[0][1:3] == (0.02, 0.4)
+
+
 def test_a_failed_run_with_the_segmented_feet_keeps_the_first(
     tiny_sim_session: Path, tiny_model: Path, monkeypatch, caplog
 ) -> None:

@@ -400,6 +400,12 @@ def _print_gait_summary(gait: dict) -> None:
         si = gait.get("symmetry_index_pct", {}).get(key)
         si_text = "" if si is None else f"{si:+.1f}"
         print(f"{label + ' [' + unit + ']':28s} {cells[0]:>16s} {cells[1]:>16s} {si_text:>7s}")
+    inferred = sum(int(gait.get(side, {}).get("n_inferred", 0)) for side in ("left", "right"))
+    if inferred:
+        print(
+            f"{inferred} of these strides join a stance the camera never saw, laid from the "
+            "rhythm of the steps (gait_strides.csv: inferred)"
+        )
 
 
 def _cmd_tags(args: argparse.Namespace) -> int:

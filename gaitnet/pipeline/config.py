@@ -125,6 +125,15 @@ class PipelineParams:
     """With ``segmented_stances``: run the second pass on every session; false: only where
     the first run's landmarks show a missed stance (:mod:`gaitnet.pipeline.stance_gaps`),
     since where they hold every stance it has nothing to find."""
+    hidden_stances: bool = True
+    """Lay the stances the camera never saw from the rhythm of the steps: each dip of the
+    camera's height while walking is a step, and a step with no landmark between two with one
+    gets a stance of the alternating side, between theirs along the walking line
+    (:mod:`gaitnet.pipeline.hidden_stances`; ``inferred`` in ``strides.csv``); false: the
+    filter's landmarks only."""
+    step_dip_m: float = 0.008
+    """With ``hidden_stances``: the least prominence of a dip of the camera's height that
+    marks a step [m] (a walk's dips: 2–5 cm; the height's noise after the smoother: ~1 mm)."""
     min_foot_seen_fraction: float = 0.2
     """A result where a foot was measured in fewer of the frames than this (either side) is
     marked unreliable (``"reliable": false`` in ``summary.json``): too few plausible feet to
@@ -198,6 +207,7 @@ class PipelineParams:
         check_int_range("pipeline.workers", self.workers, 1, 64)
         check_range("pipeline.toe_anchor_window_s", self.toe_anchor_window_s, 0.0, 10.0, " s")
         check_range("pipeline.toe_anchor_tolerance_m", self.toe_anchor_tolerance_m, 0.0, 0.2, " m")
+        check_range("pipeline.step_dip_m", self.step_dip_m, 0.001, 0.1, " m")
         check_range("pipeline.min_foot_seen_fraction", self.min_foot_seen_fraction, 0.0, 1.0)
         if self.gap_fill not in ("swing", "bridge", "none"):
             raise ValueError(

@@ -74,23 +74,30 @@ PARAMETERS: tuple[tuple[str, str, str], ...] = (
 )
 KEYS = tuple(key for key, _, _ in PARAMETERS)
 EVENT_COLUMNS = ("initial_contact_s", "toe_off_s", "next_initial_contact_s")
-STRIDE_TABLE_COLUMNS = ("side", "stride", "steady", *EVENT_COLUMNS, *KEYS)
+STRIDE_TABLE_COLUMNS = ("side", "stride", "steady", "inferred", *EVENT_COLUMNS, *KEYS)
 DEFAULT_TOLERANCE_S = 0.25
 
 
 @dataclass(frozen=True)
 class StrideParameters:
     """One stride's parameters: ``values`` maps every key of :data:`PARAMETERS` and
-    :data:`EVENT_COLUMNS` to a finite float or None."""
+    :data:`EVENT_COLUMNS` to a finite float or None; ``inferred``: a stance of the stride was
+    laid from the step rhythm, not seen (:mod:`gaitnet.pipeline.hidden_stances`)."""
 
     side: str
     index: int
     steady: bool
     values: dict[str, float | None]
+    inferred: bool = False
 
     def row(self) -> dict[str, str]:
         """The stride as a CSV row (:data:`STRIDE_TABLE_COLUMNS`), None as an empty cell."""
-        out = {"side": self.side, "stride": str(self.index), "steady": str(self.steady).lower()}
+        out = {
+            "side": self.side,
+            "stride": str(self.index),
+            "steady": str(self.steady).lower(),
+            "inferred": str(self.inferred).lower(),
+        }
         for key in (*EVENT_COLUMNS, *KEYS):
             value = self.values.get(key)
             out[key] = "" if value is None else f"{value:.6f}"
@@ -181,7 +188,8 @@ def stride_parameters(
         }
         values.update(_phases(a, b, other))
         values = {k: _finite(v) for k, v in values.items()}
-        out.append(StrideParameters(s.side, s.index, s.steady, values))
+        inferred = s.start.inferred or s.end.inferred
+        out.append(StrideParameters(s.side, s.index, s.steady, values, inferred))
     return out
 
 
@@ -192,14 +200,18 @@ def robinson_index_pct(left: float, right: float) -> float | None:
 
 
 def summarise(rows: Sequence[StrideParameters]) -> dict[str, object]:
-    """Per side: ``n_strides`` (steady) and for every parameter ``{mean, sd, n}`` over the
+    """Per side: ``n_strides`` (steady), ``n_inferred`` (of those, the strides with a stance
+    laid from the step rhythm) and for every parameter ``{mean, sd, n}`` over the
     steady strides with a value (sample SD, 0 for one value; the parameter is left out when no
     stride has it); ``symmetry_index_pct``: the Robinson index per parameter (module
     docstring) where both sides have a mean."""
     out: dict[str, object] = {}
     for side in SIDES:
         own = [r for r in rows if r.side == side and r.steady]
-        stats: dict[str, object] = {"n_strides": len(own)}
+        stats: dict[str, object] = {
+            "n_strides": len(own),
+            "n_inferred": sum(r.inferred for r in own),
+        }
         for key in KEYS:
             v = np.array([r.values[key] for r in own if r.values.get(key) is not None])
             if v.size:

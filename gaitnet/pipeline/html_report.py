@@ -132,9 +132,12 @@ def _summary_table(summary: Mapping[str, object]) -> str:
             f"<td>{html.escape(TYPICAL_ADULT.get(key, ''))}</td></tr>"
         )
     n_left, n_right = left.get("n_strides", 0), right.get("n_strides", 0)
+    inferred = int(left.get("n_inferred", 0)) + int(right.get("n_inferred", 0))
     caption = (
         f"mean ± SD (number of strides) over {int(n_left)} left and {int(n_right)} right "
-        "steady strides; SI = 2 (R − L) / (R + L) × 100 (Robinson et al. 1987)"
+        "steady strides"
+        + (f", {inferred} with a stance laid from the step rhythm (not seen)" if inferred else "")
+        + "; SI = 2 (R − L) / (R + L) × 100 (Robinson et al. 1987)"
     )
     return (
         f'<table class="summary"><caption class="note">{html.escape(caption)}</caption>'
@@ -145,7 +148,7 @@ def _summary_table(summary: Mapping[str, object]) -> str:
 def _stride_table(rows: Sequence[StrideParameters]) -> str:
     events = [(k, k.removesuffix("_s").replace("_", " "), "s") for k in EVENT_COLUMNS]
     columns = [*events, *PARAMETERS]
-    head = "<tr><th>side</th><th>stride</th><th>steady</th>" + "".join(
+    head = "<tr><th>side</th><th>stride</th><th>steady</th><th>seen</th>" + "".join(
         f"<th>{html.escape(label)} [{html.escape(unit)}]</th>" for _, label, unit in columns
     )
     body = []
@@ -155,7 +158,8 @@ def _stride_table(rows: Sequence[StrideParameters]) -> str:
         body.append(
             f'<tr class="{"steady" if r.steady else "unsteady"}">'
             f'<td class="{side}">{side}</td><td>{r.index}</td>'
-            f"<td>{'yes' if r.steady else 'no'}</td>{cells}</tr>"
+            f"<td>{'yes' if r.steady else 'no'}</td>"
+            f"<td>{'no: laid from the step rhythm' if r.inferred else 'yes'}</td>{cells}</tr>"
         )
     return (
         f"<details><summary>Per-stride table ({len(rows)} strides)</summary>"

@@ -49,6 +49,7 @@ from gaitnet.pipeline.config import REFERENCE_HEIGHT_M, InferConfig, PipelinePar
 from gaitnet.pipeline.foot_points import FrameFeet, measure_feet
 from gaitnet.pipeline.foot_sides import reside_measured_feet
 from gaitnet.pipeline.gap_bridge import bridge_gaps, frames_to_bridge
+from gaitnet.pipeline.hidden_stances import with_hidden_stances
 from gaitnet.pipeline.pelvis_extrinsic import (
     PelvisExtrinsic,
     complete_standing_feet,
@@ -281,6 +282,11 @@ def observe(
         timings["filter_segmented"] = time.perf_counter() - t0
     elif masks:
         log.info("the filter's landmarks miss no stance: no second run with the segmented feet")
+    if cfg.pipeline.hidden_stances:
+        vio = with_hidden_stances(
+            vio, cfg.pipeline.step_dip_m, cfg.vio.stance.line_window_s,
+            (cfg.vio.gait.max_stride_time_s, cfg.vio.gait.max_stance_time_s),
+        )  # fmt: skip
     T_f = np.array(T_filter)
     T_move = vio.T_WfromC @ np.linalg.inv(T_f)  # filter pose → smoothed pose, per frame
     measured, toes = (

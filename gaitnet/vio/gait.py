@@ -60,17 +60,20 @@ STRIDE_COLUMNS = (
     "from_y_m",
     "to_x_m",
     "to_y_m",
+    "inferred",
 )
 
 
 @dataclass(frozen=True)
 class Stance:
-    """One stance-foot landmark: ``side``, first/last time seen [s], floor position ``xy`` [m]."""
+    """One stance-foot landmark: ``side``, first/last time seen [s], floor position ``xy`` [m];
+    ``inferred``: laid from the step rhythm, never seen (:mod:`gaitnet.pipeline.hidden_stances`)."""
 
     side: str
     t_first_s: float
     t_last_s: float
     xy: np.ndarray
+    inferred: bool = False
 
 
 @dataclass(frozen=True)
@@ -126,6 +129,7 @@ class Stride:
             "from_y_m": num(self.start.xy[1]),
             "to_x_m": num(self.end.xy[0]),
             "to_y_m": num(self.end.xy[1]),
+            "inferred": str(self.start.inferred or self.end.inferred).lower(),
         }
 
 
@@ -167,6 +171,7 @@ def merge_split_stances(
                     min(prev.t_first_s, s.t_first_s),
                     max(prev.t_last_s, s.t_last_s),
                     longer.xy,
+                    longer.inferred,
                 )
             else:
                 merged.append(s)

@@ -16,7 +16,9 @@ __all__ = ["StanceFoot", "VioResult"]
 class StanceFoot:
     """One stance-foot landmark: ``side``, the first and last frame time it was observed [s],
     its floor position ``xy`` (world, smoothed when the smoother ran, else the filter's),
-    its standard deviations ``std_xy`` [m] and the number of observations."""
+    its standard deviations ``std_xy`` [m] and the number of observations; ``inferred``: laid
+    from the step rhythm where the camera never saw the foot (no observation, a negative
+    ``landmark_id``: :mod:`gaitnet.pipeline.hidden_stances`)."""
 
     landmark_id: int
     side: str
@@ -25,6 +27,7 @@ class StanceFoot:
     xy: np.ndarray
     std_xy: np.ndarray
     n_observations: int
+    inferred: bool = False
 
 
 @dataclass
