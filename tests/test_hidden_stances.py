@@ -30,11 +30,17 @@ HEADING = np.radians(30.0)
 
 
 def _walk(
-    n_steps: int = N_STEPS, dip_m: float = DIP_M, sway_m: float = 0.0, step_s: float = STEP_S
+    n_steps: int = N_STEPS,
+    dip_m: float = DIP_M,
+    sway_m: float = 0.0,
+    step_s: float = STEP_S,
+    dip_shift_s: dict[int, float] | None = None,
 ):
     """A straight walk at 30° heading: standing 1.5 s, ``n_steps`` steps of 0.66 m every
     ``step_s`` (the first by the right foot), each heel strike at a dip of the camera's height,
-    the closing step ``step_s`` after the last, standing 1.5 s. Returns the frame times, camera
+    the closing step ``step_s`` after the last, standing 1.5 s. ``dip_shift_s``: the height
+    made of one dip per step instead (0.08 s wide), those of the given steps moved by the
+    given times. Returns the frame times, camera
     poses, every stance's (side, heel strike time, floor point) and the walk's direction."""
     t_end = T0 + (n_steps + 1) * step_s + 1.5
     t = np.arange(0.0, t_end, 1.0 / FPS)
@@ -46,6 +52,9 @@ def _walk(
     sway = sway_m * np.sin(np.pi * (t - T0) / step_s) * walking
     T[:, :2, 3] = progress[:, None] * u + sway[:, None] * left
     T[:, 2, 3] = 1.0 - dip_m * 0.5 * (1.0 + np.cos(2.0 * np.pi * (t - T0) / step_s)) * walking
+    if dip_shift_s is not None:
+        at = [T0 + k * step_s + dip_shift_s.get(k, 0.0) for k in range(n_steps)]
+        T[:, 2, 3] = 1.0 - dip_m * np.exp(-0.5 * ((t[:, None] - at) / 0.08) ** 2).sum(axis=1)
     stances = [("left", 0.0, HALF_WIDTH_M * left), ("right", 0.0, -HALF_WIDTH_M * left)]
     for k in range(n_steps):
         side = "right" if k % 2 == 0 else "left"
@@ -131,6 +140,21 @@ def test_a_stance_first_seen_late_starts_at_its_dip(late_s: float, retimed: bool
     assert out.t_first_s == pytest.approx(expected, abs=1.0 / FPS)  # the dips lie on frames
     assert (out.t_last_s, out.xy.tolist()) == (late.t_last_s, late.xy.tolist())
     assert f"{int(retimed)} seen late re-timed" in note
+
+
+def test_a_dip_out_of_the_rhythm_times_no_late_stance() -> None:
+    """Step 1's dip 0.15 s early (its intervals 0.73 and 1.27 of the rhythm, as in a real
+    gait initiation): step 1's landmark 0.25 s past it plus the delay stays as seen; step 5's,
+    as late past a dip in the rhythm, is re-timed."""
+    t, T, stances = _walk(dip_shift_s={1: -0.15})
+    seen = _landmarks(stances)
+    late = {3: LATE_S + 0.1 - 0.15, 7: LATE_S + 0.1}  # landmark ids of steps 1 and 5
+    feet = [replace(f, t_first_s=f.t_first_s + late.get(f.landmark_id, 0.0)) for f in seen]
+    out, note = hidden_stances(feet, t, T, 0.008, 0.6)
+    first = {f.landmark_id: f.t_first_s for f in out}
+    assert first[3] == pytest.approx(seen[3].t_first_s + late[3])
+    assert first[7] == pytest.approx(stances[7][1] + DELAY_S, abs=1.0 / FPS)
+    assert "1 seen late re-timed" in note
 
 
 def test_unseen_stances_at_the_ends_are_not_laid() -> None:

@@ -40,7 +40,9 @@ walking step. Each step of a gap gets a stance of its side:
 
 A walking landmark (steps ``0 … n − 1``) first seen more than :data:`LATE_S` after its dip plus
 that delay was hidden as the foot came down (the last stance of a tall walker: 0.34 s late,
-which put its stride out of a 0.25 s match): it starts at its dip plus the delay instead.
+which put its stride out of a 0.25 s match): it starts at its dip plus the delay instead, when
+that dip keeps the walk's rhythm (:data:`RHYTHM_TOLERANCE`; a walk of fewer than three dips
+has none).
 
 Such a stance is ``inferred``: it has no observation (``n_observations`` 0, a negative
 ``landmark_id``), its standard deviations are :data:`INFERRED_STD_M`, and a stride that joins
@@ -65,6 +67,7 @@ __all__ = [
     "BEFORE_DIP_S",
     "INFERRED_STD_M",
     "LATE_S",
+    "RHYTHM_TOLERANCE",
     "LOWPASS_HZ",
     "MIN_STEP_S",
     "WALKING_SPEED_MPS",
@@ -94,6 +97,10 @@ LATE_S = 0.15
 """A walking landmark first seen more than this after its dip plus the walk's delay was hidden
 as the foot came down: it starts at its dip plus the delay."""
 """Dip to landmark where fewer than two landmarks give the walk's own delay."""
+RHYTHM_TOLERANCE = 0.25
+"""A dip re-times a landmark only when its intervals to the dips either side lie within this
+fraction of the walk's median interval (in gait initiation a dip came 0.15 s before its heel
+strike, 0.72 and 1.33 intervals from its neighbours)."""
 INFERRED_STD_M = 0.03
 """Standard deviation given to an inferred stance's position [m] (steps differ by 1–3 cm)."""
 
@@ -179,6 +186,15 @@ def step_dips(t_s: np.ndarray, T_WfromC: np.ndarray, min_dip_m: float) -> np.nda
     path = _moving_average(grid, pose[:, :2], 0.3)
     speed = np.linalg.norm(np.gradient(path, grid, axis=0), axis=1)
     return grid[[k for k in dips if speed[k] > WALKING_SPEED_MPS]]
+
+
+def _in_rhythm(dips: np.ndarray) -> np.ndarray:
+    """(n,) whether each dip lies in the walk's rhythm (:data:`RHYTHM_TOLERANCE`)."""
+    if len(dips) < 3:
+        return np.zeros(len(dips), dtype=bool)
+    gaps = np.diff(dips) / np.median(np.diff(dips))
+    fits = np.abs(gaps - 1.0) <= RHYTHM_TOLERANCE
+    return np.r_[True, fits] & np.r_[fits, True]
 
 
 def _step_of(foot: StanceFoot, dips: np.ndarray) -> int | None:
@@ -268,10 +284,11 @@ def hidden_stances(
     def along(a: _Anchor) -> float:
         return float(np.mean([line.along_across(f.xy, f.t_first_s)[0] for f in a.feet]))
 
+    rhythm = _in_rhythm(dips)
     retimed = {
         id(f): replace(f, t_first_s=float(dips[k] + delay))
         for k, f in walking_all
-        if f.t_first_s > dips[k] + delay + LATE_S
+        if f.t_first_s > dips[k] + delay + LATE_S and rhythm[k]
     }
     laid: list[StanceFoot] = []
     broken = 0
