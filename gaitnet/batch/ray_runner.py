@@ -64,6 +64,8 @@ def _check_reachable(address: str) -> None:
 def connect(address: str, cores: int) -> RayCluster:
     """Connect to the Ray cluster at ``address`` (``HOST:PORT``, ``ray://HOST:PORT`` or
     ``auto``), or start a local instance with ``cores`` CPUs for ``local``."""
+    if address != "local":
+        _check_reachable(address)
     try:
         import ray
     except ImportError:
@@ -75,8 +77,6 @@ def connect(address: str, cores: int) -> RayCluster:
     }
     if address == "local":
         options |= {"num_cpus": cores, "include_dashboard": False}
-    else:
-        _check_reachable(address)
     try:
         ray.init(address=address, **options)
     except Exception as exc:  # ray's own: a refused connection, a version mismatch, ...

@@ -126,7 +126,6 @@ def run_batch(
     each session ends; ``software`` goes into each ``summary.json``."""
     _check_workers(workers)
     start = time.perf_counter()
-    plan.out.mkdir(parents=True, exist_ok=True)
     todo = plan.todo()
     result = BatchResult(plan, skipped=[s.name for s in plan.sessions if s not in todo])
 
@@ -143,6 +142,7 @@ def run_batch(
         else:
             result.workers, result.threads = _ray_start(ray, workers)
         tasks = _tasks(plan, todo, result.threads, software)
+        plan.out.mkdir(parents=True, exist_ok=True)
         if on_start is not None:
             on_start(len(plan.sessions), len(result.skipped))
         if ray is None:
@@ -156,6 +156,7 @@ def run_batch(
             result.outcomes = run_ray(tasks, result.workers, per_task, done)
     elif on_start is not None:
         on_start(len(plan.sessions), len(result.skipped))
+    plan.out.mkdir(parents=True, exist_ok=True)
     _write_tables(result)
     result.wall_s = time.perf_counter() - start
     return result

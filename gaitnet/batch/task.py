@@ -21,9 +21,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from gaitnet.errors import USER_ERRORS, one_line, user_error_message
-from gaitnet.pipeline.config import InferConfig
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # a worker imports the pipeline with its first session, not before
+    from gaitnet.pipeline.config import InferConfig
     from gaitnet.pipeline.infer_folder import InferModels
 
 __all__ = [

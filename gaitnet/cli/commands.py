@@ -425,7 +425,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from gaitnet import __version__
-    from gaitnet.batch import plan_batch, run_batch
+    from gaitnet.batch.run import plan_batch, run_batch
     from gaitnet.errors import one_line
 
     # KEY=VALUE among the sessions (both are positional): an override unless it is a path
