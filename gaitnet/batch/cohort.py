@@ -10,8 +10,6 @@ stride of that side has. Both files are written atomically.
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -20,6 +18,7 @@ from pathlib import Path
 from gaitnet.batch.task import COMPLETE_FILE, SessionOutcome
 from gaitnet.errors import InputError
 from gaitnet.io.atomic import atomic_write_text
+from gaitnet.io.csv_text import csv_text
 
 __all__ = [
     "COHORT_COLUMNS",
@@ -102,21 +101,13 @@ def cohort_rows(out: Path, names: Sequence[str]) -> list[CohortRow]:
     return rows
 
 
-def _csv_text(columns: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
-    text = io.StringIO()
-    writer = csv.writer(text, lineterminator="\n")
-    writer.writerow(columns)
-    writer.writerows(rows)
-    return text.getvalue()
-
-
 def cohort_csv(rows: Sequence[CohortRow]) -> str:
     """``cohort.csv``'s text."""
-    return _csv_text(COHORT_COLUMNS, [r.cells() for r in rows])
+    return csv_text(COHORT_COLUMNS, [r.cells() for r in rows])
 
 
 def write_failures(path: Path, failed: Sequence[SessionOutcome]) -> None:
     """Write ``failures.csv``: the sessions of this run that failed, with their one-line error
     (only the header when none did)."""
     rows = [[o.name, o.session, o.error or ""] for o in failed]
-    atomic_write_text(path, _csv_text(FAILURE_COLUMNS, rows))
+    atomic_write_text(path, csv_text(FAILURE_COLUMNS, rows))

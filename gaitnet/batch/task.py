@@ -81,7 +81,8 @@ class SessionOutcome:
     """How one session went: ``error`` is None when its folder was written, else one line;
     ``detail`` the traceback of a bug in gaitnet (else empty); ``warnings`` what the pipeline
     logged; ``startup_s`` the seconds before the pipeline started (imports and models on a
-    worker's first session, opening the session), ``infer_s`` the pipeline and the writing;
+    worker's first session, opening the session), ``infer_s`` the pipeline and the writing,
+    ``cpu_s`` the CPU seconds of the worker process (all its threads) over both;
     ``worker`` ``host:pid`` of the process that ran it."""
 
     name: str
@@ -91,6 +92,7 @@ class SessionOutcome:
     warnings: tuple[str, ...] = field(default_factory=tuple)
     startup_s: float = 0.0
     infer_s: float = 0.0
+    cpu_s: float = 0.0
     worker: str = ""
 
     @property
@@ -126,7 +128,7 @@ class _Collect(logging.Handler):
 def run_session(task: SessionTask) -> SessionOutcome:
     """Run ``gaitnet infer`` on ``task.session`` into ``task.out`` (module docstring); a folder
     there without :data:`COMPLETE_FILE` is replaced."""
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     collect = _Collect()
     root = logging.getLogger()
     root.addHandler(collect)
@@ -162,5 +164,6 @@ def run_session(task: SessionTask) -> SessionOutcome:
         warnings=tuple(collect.messages),
         startup_s=startup if error is None else 0.0,
         infer_s=total - startup if error is None else total,
+        cpu_s=time.process_time() - cpu,
         worker=f"{socket.gethostname()}:{os.getpid()}",
     )
