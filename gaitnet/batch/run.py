@@ -54,7 +54,8 @@ class BatchPlan:
 class BatchResult:
     """What a batch did: the ``outcomes`` of the sessions it ran (in the order they ended),
     the names it ``skipped`` (complete already), the ``rows`` of ``cohort.csv``, the
-    ``workers`` and the threads per session ``(pipeline.workers, models.threads)`` it used."""
+    ``workers`` and the threads of each session ``(pipeline.workers, models.threads)`` (of
+    its config: the overrides' where they set them)."""
 
     plan: BatchPlan
     outcomes: list[SessionOutcome] = field(default_factory=list)
@@ -135,13 +136,10 @@ def run_batch(
             on_done(outcome)
 
     if todo:
-        if ray is None:
-            cores = usable_cores()
-            result.workers = workers or max(1, cores // 2)
-            result.threads = thread_settings(cores, result.workers)
-        else:
-            result.workers, result.threads = _ray_start(ray, workers)
-        tasks = _tasks(plan, todo, result.threads, software)
+        result.workers, cores, node_cpus = _capacity(ray, workers)
+        tasks = _tasks(plan, todo, thread_settings(cores, result.workers), software)
+        models, pipeline = tasks[0].config.models, tasks[0].config.pipeline
+        result.threads = (pipeline.workers, models.threads)
         plan.out.mkdir(parents=True, exist_ok=True)
         if on_start is not None:
             on_start(len(plan.sessions), len(result.skipped))
@@ -152,8 +150,8 @@ def run_batch(
         else:
             from gaitnet.batch.ray_runner import run_ray
 
-            per_task = result.threads[0] * result.threads[1]
-            result.outcomes = run_ray(tasks, result.workers, per_task, done)
+            cpus = min(node_cpus, max(1, pipeline.workers * models.threads))
+            result.outcomes = run_ray(tasks, result.workers, cpus, done)
     elif on_start is not None:
         on_start(len(plan.sessions), len(result.skipped))
     plan.out.mkdir(parents=True, exist_ok=True)
@@ -162,15 +160,20 @@ def run_batch(
     return result
 
 
-def _ray_start(address: str, workers: int | None) -> tuple[int, tuple[int, int]]:
-    """Join the cluster; the tasks at once and the thread settings of each (at most the CPUs
-    of the smallest node)."""
+def _capacity(ray: str | None, workers: int | None) -> tuple[int, int, int]:
+    """``(workers, cores, node_cpus)``: the sessions run at once, the CPUs they share (for
+    :func:`~gaitnet.batch.task.thread_settings`) and the most CPUs one may ask for: this
+    machine's, or, with Ray, the cluster's once joined (a session at most the CPUs of its
+    smallest node)."""
+    if ray is None:
+        cores = usable_cores()
+        return workers or max(1, cores // 2), cores, cores
     from gaitnet.batch.ray_runner import connect
 
-    cluster = connect(address, usable_cores())
+    cluster = connect(ray, usable_cores())
     workers = workers or max(1, cluster.cpus // 2)
     cores = min(cluster.cpus, cluster.smallest_node_cpus * workers)
-    return workers, thread_settings(cores, workers)
+    return workers, cores, cluster.smallest_node_cpus
 
 
 def _write_tables(result: BatchResult) -> None:
