@@ -24,8 +24,9 @@ LAYERS = {
     "sim": 5,
     "training": 5,
     "pipeline": 5,
-    "cli": 6,
-    "__init__": 6,
+    "batch": 6,
+    "cli": 7,
+    "__init__": 7,
 }
 
 

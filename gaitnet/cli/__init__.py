@@ -49,6 +49,7 @@ from gaitnet.cli.arguments import (
     _output_folder,
 )
 from gaitnet.cli.commands import (
+    _cmd_batch,
     _cmd_check,
     _cmd_convert,
     _cmd_evaluate,
@@ -362,7 +363,49 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides")
     p.set_defaults(func=_cmd_infer)
 
+    _add_batch(sub)
     return parser
+
+
+def _add_batch(sub: argparse._SubParsersAction) -> None:
+    """``gaitnet batch``: many sessions, locally or on a Ray cluster, and a cohort table."""
+    p = sub.add_parser(
+        "batch",
+        help="run the whole pipeline on many sessions (local processes or a Ray cluster) and "
+        "gather a cohort table",
+        description="Run gaitnet infer on every session found (session folders, .bag files, "
+        "folders searched recursively), each into OUT/<name>/, skipping sessions whose result "
+        "is complete; a failed session is listed in OUT/failures.csv and the others go on. "
+        "Writes OUT/cohort.csv and OUT/cohort.html (docs/batch.md).",
+    )
+    p.add_argument(
+        "sessions",
+        nargs="+",
+        metavar="SESSIONS",
+        help="session folders, .bag files, or folders searched recursively for them",
+    )
+    p.add_argument("--out", metavar="DIR", type=_output_folder, required=True, help="output folder")
+    p.add_argument(
+        "--workers",
+        metavar="N",
+        type=_integer,
+        default=None,
+        help="sessions run at once (default: half the CPUs, of the cluster with --ray); each "
+        "gets CPUs // N threads",
+    )
+    p.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        default=None,
+        help="run the sessions as tasks on the Ray cluster at ADDRESS (HOST:PORT, "
+        "ray://HOST:PORT or auto), or on a Ray instance started here with 'local' (needs the "
+        "cluster extra)",
+    )
+    p.add_argument(
+        "--config", metavar="FILE", default=None, help="YAML inference config (default: built-in)"
+    )
+    p.add_argument("overrides", nargs="*", metavar="KEY=VALUE", help="config overrides")
+    p.set_defaults(func=_cmd_batch)
 
 
 class _Terminated(KeyboardInterrupt):

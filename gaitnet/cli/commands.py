@@ -307,68 +307,32 @@ def _write_frames_to_label(args: argparse.Namespace, session, model) -> int:
 
 
 def _cmd_infer(args: argparse.Namespace) -> int:
-    import time
-
     from gaitnet import __version__
-    from gaitnet.config import dump_config, load_config
+    from gaitnet.config import load_config
     from gaitnet.io import open_session
-    from gaitnet.io.atomic import StagedFolder, check_output_folder
-    from gaitnet.io.images import encode_png
+    from gaitnet.io.atomic import check_output_folder
     from gaitnet.pipeline.config import InferConfig
 
     forced = ["vio.scene.refuse=false"] if args.force else []
     cfg = load_config(InferConfig, args.config, [*args.overrides, *forced])
     check_output_folder(args.out, args.overwrite)
     session = open_session(args.session)
-    # the heavy imports (torch, onnxruntime) once the arguments are known to be good
-    from gaitnet.motion.onnx_runtime import OnnxPredictor
-    from gaitnet.pipeline.infer import default_predictor_path, run_infer
-    from gaitnet.pipeline.outputs import write_infer_files
-    from gaitnet.segmentation.onnx_runtime import OnnxSegmenter
-    from gaitnet.segmentation.segment_session import default_segmenter_path
+    # the heavy imports (onnxruntime) once the arguments are known to be good
+    from gaitnet.pipeline.infer_folder import load_models, write_infer_folder
 
-    threads = cfg.models.threads
-    segmenter = OnnxSegmenter(
-        args.segmenter or cfg.models.segmenter or default_segmenter_path(),
-        threads=threads,
-        flip_average=cfg.models.segmenter_flip_average,
-        edge_refine=cfg.edge_refine,
+    run = write_infer_folder(
+        session,
+        cfg,
+        load_models(cfg, args.segmenter, args.predictor),
+        args.out,
+        {"path": str(args.session), "software": f"gaitnet {__version__}"},
+        overwrite=args.overwrite,
+        save_labels=args.save_labels,
+        progress=lambda stage_name: (
+            lambda it, total: tqdm(it, total=total, desc=stage_name, unit="frame")
+        ),
     )
-    predictor = OnnxPredictor(
-        args.predictor or cfg.models.predictor or default_predictor_path(), threads=threads
-    )
-    stage = StagedFolder(args.out, args.overwrite)
-    try:
-        if args.save_labels:
-            (stage.path / "labels").mkdir()
-
-        def keep(t_ns: int, labels: np.ndarray) -> None:
-            (stage.path / "labels" / f"{t_ns}.png").write_bytes(encode_png(labels))
-
-        start = time.perf_counter()
-        result = run_infer(
-            session,
-            cfg,
-            segmenter,
-            predictor,
-            progress=lambda stage_name: (
-                lambda it, total: tqdm(it, total=total, desc=stage_name, unit="frame")
-            ),
-            keep_labels=keep if args.save_labels else None,
-        )
-        wall = time.perf_counter() - start
-        facts = {
-            "path": str(args.session),
-            "device": session.calibration.device,
-            "frames_in_session": len(session),
-            "software": f"gaitnet {__version__}",
-        }
-        gait = write_infer_files(result, stage.path, facts)
-        (stage.path / "infer_config.yaml").write_text(dump_config(cfg))
-        out = stage.commit()
-    except BaseException:
-        stage.abort()
-        raise
+    result, wall, gait, out = run.result, run.wall_s, run.gait, run.path
     n = len(result.t_s)
     seen = result.foot_measured.mean(axis=0)
     _print_trust(result.unreliable, result.vio)
@@ -459,4 +423,52 @@ def _cmd_tags(args: argparse.Namespace) -> int:
     print(f"  gap_m: {board.gap_m:g}")
     print(f"  first_id: {board.first_id}")
     print("  T_WfromBoard: [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]")
+    return 0
+
+
+def _cmd_batch(args: argparse.Namespace) -> int:
+    import sys
+    from pathlib import Path
+
+    from gaitnet import __version__
+    from gaitnet.batch.run import plan_batch, run_batch
+    from gaitnet.errors import one_line
+
+    # KEY=VALUE among the sessions (both are positional): an override unless it is a path
+    sessions = [s for s in args.sessions if "=" not in s or Path(s).exists()]
+    overrides = [s for s in args.sessions if s not in sessions] + list(args.overrides)
+    plan = plan_batch(sessions, args.out, args.config, overrides)
+    bars: list[tqdm] = []
+
+    def start(total: int, skipped: int) -> None:
+        bars.append(tqdm(total=total, initial=skipped, desc="sessions", unit="session"))
+
+    def done(outcome) -> None:
+        if not outcome.ok:
+            tqdm.write(f"failed: {outcome.name}: {outcome.error}")
+        bars[0].update(1)
+
+    result = run_batch(plan, f"gaitnet {__version__}", args.workers, args.ray, start, done)
+    for bar in bars:
+        bar.close()
+    failed, n = result.failed, len(plan.sessions)
+    print(
+        f"{n} session(s): {len(result.outcomes) - len(failed)} written, {len(result.skipped)} "
+        f"skipped (complete already), {len(failed)} failed"
+    )
+    if result.outcomes:
+        where = f"Ray tasks ({args.ray})" if args.ray else "worker processes"
+        print(
+            f"{result.workers} {where}, each session with {result.threads[0]} segmentation "
+            f"thread(s) × {result.threads[1]} onnxruntime thread(s); {result.wall_s:.1f} s"
+        )
+    print(f"wrote {plan.out / 'cohort.csv'} ({len(result.rows) // 2} sessions) and cohort.html")
+    if failed:
+        names = ", ".join(o.name for o in failed)
+        print(
+            f"{PROG} batch: error: {len(failed)} of {n} session(s) failed, listed with their "
+            f"errors in {plan.out / 'failures.csv'}: {one_line(names, limit=300)}",
+            file=sys.stderr,
+        )
+        return 1
     return 0

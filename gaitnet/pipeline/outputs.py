@@ -31,14 +31,13 @@
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 from pathlib import Path
 
 import numpy as np
 
 from gaitnet.geometry import so3_exp
+from gaitnet.io.csv_text import csv_text
 from gaitnet.io.trajectory import tum_text
 from gaitnet.motion.skeleton import JOINT_NAMES, SMPL_JOINT_INDICES
 from gaitnet.pipeline.c3d_export import write_gait_c3d
@@ -68,14 +67,6 @@ __all__ = ["result_summary", "write_infer_files"]
 SIDES = ("left", "right")
 
 
-def _csv(columns: list[str], rows: list[list[object]]) -> str:
-    text = io.StringIO()
-    writer = csv.writer(text, lineterminator="\n")
-    writer.writerow(columns)
-    writer.writerows(rows)
-    return text.getvalue()
-
-
 def _feet_csv(r: InferResult) -> str:
     cols = ["t_ns"] + [f"marker_{s}_{a}" for s in SIDES for a in "xyz"]
     cols += [f"measured_{s}" for s in SIDES] + [f"contact_{s}" for s in SIDES]
@@ -85,7 +76,7 @@ def _feet_csv(r: InferResult) -> str:
         row += [f"{v:.5f}" for v in r.feet_W[k].ravel()]
         row += [int(v) for v in r.foot_measured[k]] + [int(v) for v in r.contact[k]]
         rows.append(row)
-    return _csv(cols, rows)
+    return csv_text(cols, rows)
 
 
 def _joints_csv(r: InferResult, angles: np.ndarray) -> str:
@@ -96,7 +87,7 @@ def _joints_csv(r: InferResult, angles: np.ndarray) -> str:
         + [f"{v:.2f}" for v in angles[k]]
         for k in range(len(r.t_s))
     ]
-    return _csv(cols, rows)
+    return csv_text(cols, rows)
 
 
 def _pelvis_poses(r: InferResult) -> np.ndarray:
@@ -182,7 +173,7 @@ def write_infer_files(
         tum_text(r.t_s, _pelvis_poses(r), "gaitnet infer: pelvis (x forward, y left, z up)")
     )
     stride_rows = [[s.row()[c] for c in STRIDE_COLUMNS] for s in r.vio.strides]
-    (stage / "strides.csv").write_text(_csv(list(STRIDE_COLUMNS), stride_rows))
+    (stage / "strides.csv").write_text(csv_text(list(STRIDE_COLUMNS), stride_rows))
     feet = {s: r.feet_W[:, i] for i, s in enumerate(SIDES)}
     contacts = detect_events(r.t_s, feet, r.joints_W[:, :7])
     write_gait_c3d(stage / "gait.c3d", r.t_s, r.joints_W, r.feet_W, contacts, r.subject_height_m)
