@@ -129,6 +129,7 @@ def test_cohort_rows_are_each_sessions_own_summary(
         assert row["path"] == summary["session"]["path"] == str(cohort_root / subject / "walk1")
         stats = summary["gait"][row["side"]]
         assert int(row["n_strides"]) == stats["n_strides"]
+        assert int(row["n_strides_inferred"]) == stats["n_inferred"]
         assert row["reliable"] == str(summary["reliable"]).lower()
         for column, (key, _) in PARAMETERS.items():
             expected = f"{stats[key]['mean']:.6f}" if key in stats else ""
@@ -326,6 +327,7 @@ def test_cohort_table_from_known_summaries(tmp_path: Path) -> None:
     gait = {
         "left": {
             "n_strides": 3,
+            "n_inferred": 1,
             "stride_length_m": {"mean": 1.25, "sd": 0.1, "n": 3},
             "cadence_spm": {"mean": 110.0, "sd": 1.0, "n": 3},
             "stance_pct": {"mean": 61.5, "sd": 1.0, "n": 2},
@@ -338,12 +340,12 @@ def test_cohort_table_from_known_summaries(tmp_path: Path) -> None:
         (tmp_path / name / "summary.json").write_text(json.dumps(summary))
     rows = cohort_rows(tmp_path, ["b", "a"])
     assert cohort_csv(rows).splitlines() == [
-        "session,path,side,n_strides,stride_length_m,cadence_steps_per_min,walking_speed_mps,"
-        "stance_pct,double_support_pct,reliable",
-        "b,/data/b,left,3,1.250000,110.000000,,61.500000,,false",
-        "b,/data/b,right,0,,,,,,false",
-        "a,/data/a,left,3,1.250000,110.000000,,61.500000,,true",
-        "a,/data/a,right,0,,,,,,true",
+        "session,path,side,n_strides,n_strides_inferred,stride_length_m,cadence_steps_per_min,"
+        "walking_speed_mps,stance_pct,double_support_pct,reliable",
+        "b,/data/b,left,3,1,1.250000,110.000000,,61.500000,,false",
+        "b,/data/b,right,0,0,,,,,,false",
+        "a,/data/a,left,3,1,1.250000,110.000000,,61.500000,,true",
+        "a,/data/a,right,0,0,,,,,,true",
     ]
     page = render_cohort(rows, [])
     assert page.count("data:image/png;base64,") == 3  # the parameters with a value

@@ -5,7 +5,9 @@
 ``summary.json`` (the gait summary ``gaitnet infer`` wrote: the mean over the side's steady
 strides, :func:`gaitnet.pipeline.gait_parameters.summarise`), never computed again. Columns are
 named with their units, as mobgap names its parameters; an empty cell is a parameter no steady
-stride of that side has. Both files are written atomically.
+stride of that side has; ``n_strides_inferred`` counts the steady strides through a stance
+laid from the step rhythm (``inferred`` in the session's ``gait_strides.csv``). Both files are
+written atomically.
 """
 
 from __future__ import annotations
@@ -40,7 +42,9 @@ PARAMETERS: dict[str, tuple[str, str]] = {
     "stance_pct": ("stance_pct", "% of gait cycle"),
     "double_support_pct": ("double_support_pct", "% of gait cycle"),
 }
-COHORT_COLUMNS = ("session", "path", "side", "n_strides", *PARAMETERS, "reliable")
+COHORT_COLUMNS = (
+    "session", "path", "side", "n_strides", "n_strides_inferred", *PARAMETERS, "reliable",
+)  # fmt: skip
 FAILURE_COLUMNS = ("session", "path", "error")
 
 
@@ -55,6 +59,7 @@ class CohortRow:
     n_strides: int
     values: dict[str, float | None]
     reliable: bool
+    n_inferred: int = 0
 
     def cells(self) -> list[str]:
         """The row as CSV cells (:data:`COHORT_COLUMNS`)."""
@@ -64,6 +69,7 @@ class CohortRow:
             self.path,
             self.side,
             str(self.n_strides),
+            str(self.n_inferred),
             *numbers,
             "true" if self.reliable else "false",
         ]
@@ -94,10 +100,13 @@ def cohort_rows(out: Path, names: Sequence[str]) -> list[CohortRow]:
         path = str(session.get("path", "")) if isinstance(session, dict) else ""
         for side in SIDES:
             stats = summary["gait"].get(side, {})
-            n = stats.get("n_strides", 0) if isinstance(stats, dict) else 0
+            counts = [
+                int(stats.get(key, 0)) if isinstance(stats, dict) else 0
+                for key in ("n_strides", "n_inferred")
+            ]
             values = {col: _mean(stats, key) for col, (key, _) in PARAMETERS.items()}
             reliable = summary.get("reliable") is True
-            rows.append(CohortRow(name, path, side, int(n), values, reliable))
+            rows.append(CohortRow(name, path, side, counts[0], values, reliable, counts[1]))
     return rows
 
 

@@ -14,8 +14,8 @@ from collections.abc import Sequence
 
 from gaitnet.batch.cohort import COHORT_COLUMNS, PARAMETERS, SIDES, CohortRow
 from gaitnet.batch.task import SessionOutcome
-from gaitnet.pipeline.html_report import STYLE, _figures
-from gaitnet.pipeline.plots import _figure, _png
+from gaitnet.pipeline.html_report import STYLE, figures_html
+from gaitnet.pipeline.plots import figure_png, new_figure
 from gaitnet.vio.report import SIDE_COLOURS
 
 __all__ = ["render_cohort", "strip_plot_png"]
@@ -27,7 +27,7 @@ def strip_plot_png(rows: Sequence[CohortRow], column: str) -> bytes:
     """The strip plot of one :data:`~gaitnet.batch.cohort.PARAMETERS` column (module
     docstring)."""
     _, unit = PARAMETERS[column]
-    fig = _figure(7.0, 1.9)
+    fig = new_figure(7.0, 1.9)
     ax = fig.add_subplot(1, 1, 1)
     for i, side in enumerate(SIDES):
         own = [r for r in rows if r.side == side and r.values[column] is not None]
@@ -40,7 +40,7 @@ def strip_plot_png(rows: Sequence[CohortRow], column: str) -> bytes:
     ax.set_ylim(-0.6, len(SIDES) - 0.4)
     ax.set_xlabel(f"{column} [{unit}]")
     ax.grid(axis="x", alpha=0.3)
-    return _png(fig)
+    return figure_png(fig)
 
 
 def _cell(text: str, column: str) -> str:
@@ -97,6 +97,6 @@ def render_cohort(
         f"{len(failed)} failed in the last run</p></header>"
         f'<section><h2>Sessions</h2><p class="note">{html.escape(note)}</p>{_table(rows)}'
         f"</section>{_failures(failed)}"
-        f"<section><h2>Parameters across sessions</h2>{_figures(figures)}</section>"
+        f"<section><h2>Parameters across sessions</h2>{figures_html(figures)}</section>"
         "</body></html>\n"
     )

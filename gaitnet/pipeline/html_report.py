@@ -21,7 +21,7 @@ from gaitnet.io.atomic import atomic_write_text
 from gaitnet.pipeline.gait_parameters import EVENT_COLUMNS, PARAMETERS, StrideParameters
 from gaitnet.pipeline.plots import PNG_SIGNATURE
 
-__all__ = ["TYPICAL_ADULT", "render_report", "write_report"]
+__all__ = ["STYLE", "TYPICAL_ADULT", "figures_html", "render_report", "write_report"]
 
 #: Typical healthy adult values at a self-selected speed (J. Perry, J. M. Burnfield, *Gait
 #: Analysis: Normal and Pathological Function*, 2nd ed., SLACK 2010; M. W. Whittle, *Gait
@@ -168,7 +168,8 @@ def _stride_table(rows: Sequence[StrideParameters]) -> str:
     )
 
 
-def _figures(figures: Sequence[tuple[str, bytes]]) -> str:
+def figures_html(figures: Sequence[tuple[str, bytes]]) -> str:
+    """``(title, PNG bytes)`` pairs as HTML figures with the PNG inlined (base64)."""
     out = []
     for title, png in figures:
         if not isinstance(png, (bytes, bytearray)) or not bytes(png).startswith(PNG_SIGNATURE):
@@ -202,7 +203,7 @@ def render_report(
         f"<header><h1>{html.escape(title)}</h1>{_facts(facts)}</header>"
         f"<section><h2>Time-distance parameters per side</h2>{_summary_table(summary)}"
         f"{_stride_table(rows)}</section>"
-        f"<section><h2>Figures</h2>{_figures(figures)}</section>"
+        f"<section><h2>Figures</h2>{figures_html(figures)}</section>"
         f"<section><h2>How these were measured</h2><p>{html.escape(MEASURED)}</p>"
         f'<p class="note">{html.escape(LIMITS)}</p>{extra}</section>'
         "</body></html>\n"

@@ -37,10 +37,12 @@ from gaitnet.vio.report import SIDE_COLOURS
 
 __all__ = [
     "PNG_SIGNATURE",
+    "figure_png",
     "foot_trajectories_png",
     "gait_cycles",
     "gait_phases_png",
     "joint_angles_png",
+    "new_figure",
     "top_view_png",
     "write_png",
 ]
@@ -51,13 +53,15 @@ DPI = 100
 FloatArray = NDArray[np.float64]
 
 
-def _figure(width: float, height: float) -> Figure:
+def new_figure(width: float, height: float) -> Figure:
+    """A figure of ``width`` × ``height`` inches at :data:`DPI`, drawn without a display."""
     fig = Figure(figsize=(width, height), dpi=DPI)
     FigureCanvasAgg(fig)
     return fig
 
 
-def _png(fig: Figure) -> bytes:
+def figure_png(fig: Figure) -> bytes:
+    """``fig`` laid out tightly, as PNG bytes."""
     buffer = io.BytesIO()
     fig.tight_layout()
     fig.savefig(buffer, format="png")
@@ -105,7 +109,7 @@ def foot_trajectories_png(
     pts = _feet(feet, t.size, "feet")
     masks = _masks(measured, pts, t.size)
     true = _feet(truth, t.size, "truth") if truth is not None else {}
-    fig = _figure(10, 6.5)
+    fig = new_figure(10, 6.5)
     axes = fig.subplots(3, len(pts), sharex=True, squeeze=False)
     for col, (side, p) in enumerate(pts.items()):
         colour = SIDE_COLOURS[side]
@@ -131,7 +135,7 @@ def foot_trajectories_png(
         axes[0, col].set_title(f"{side} foot")
         axes[-1, col].set_xlabel("time [s]")
         axes[0, col].legend(loc="best", fontsize=7)
-    return _png(fig)
+    return figure_png(fig)
 
 
 def top_view_png(
@@ -144,7 +148,7 @@ def top_view_png(
     detected contacts' positions (circles) and, when given, the camera path (n, 2)."""
     first = np.asarray(next(iter(feet.values()), np.zeros((0, 3))))
     pts = _feet(feet, first.shape[0] if first.ndim == 2 else -1, "feet")
-    fig = _figure(10, 3.8)
+    fig = new_figure(10, 3.8)
     ax = fig.subplots()
     if camera_xy is not None:
         cam = np.asarray(camera_xy, dtype=float)
@@ -184,7 +188,7 @@ def top_view_png(
     ax.grid(True, lw=0.3)
     ax.legend(loc="best", fontsize=7, ncol=2)
     ax.set_title("walk seen from above")
-    return _png(fig)
+    return figure_png(fig)
 
 
 def gait_cycles(contacts: Sequence[FootContact], side: str) -> list[tuple[float, float, float]]:
@@ -227,7 +231,7 @@ def joint_angles_png(
         raise InputError(f"angles_deg: expected shape ({t.size}, 6), got {a.shape}")
     if not np.all(np.isfinite(a)):
         raise InputError("angles_deg: not all finite")
-    fig = _figure(10, 3.6)
+    fig = new_figure(10, 3.6)
     axes = fig.subplots(1, 3)
     phase = np.linspace(0.0, 100.0, CYCLE_POINTS)
     for s, side in enumerate(SIDES):
@@ -256,7 +260,7 @@ def joint_angles_png(
     else:
         for ax in axes:
             ax.text(50, 0, "no complete gait cycle", ha="center", va="center")
-    return _png(fig)
+    return figure_png(fig)
 
 
 #: A stance whose still interval reaches this close [s] to the plotted range's start or end
@@ -308,7 +312,7 @@ def gait_phases_png(contacts: Sequence[FootContact], t_start_s: float, t_end_s: 
     unknown (hatched), never as stance; double support where both feet's stances overlap."""
     if not (np.isfinite(t_start_s) and np.isfinite(t_end_s) and t_end_s > t_start_s):
         raise InputError(f"gait phases: time range {t_start_s}..{t_end_s} s is not increasing")
-    fig = _figure(10, 2.4)
+    fig = new_figure(10, 2.4)
     ax = fig.subplots()
     bars = {}
     any_unknown = False
@@ -340,4 +344,4 @@ def gait_phases_png(contacts: Sequence[FootContact], t_start_s: float, t_end_s: 
     ax.grid(True, axis="x", lw=0.3)
     if any_unknown:
         ax.set_title("hatched: an event was not detected, the phase is unknown", fontsize=8)
-    return _png(fig)
+    return figure_png(fig)
