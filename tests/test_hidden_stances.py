@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from gaitnet.pipeline.hidden_stances import (
+    HALF_STEP_WIDTH_M,
     INFERRED_STD_M,
     LATE_S,
     WalkingLine,
@@ -35,12 +36,14 @@ def _walk(
     sway_m: float = 0.0,
     step_s: float = STEP_S,
     dip_shift_s: dict[int, float] | None = None,
+    walk_half_m: float = HALF_WIDTH_M,
 ):
     """A straight walk at 30° heading: standing 1.5 s, ``n_steps`` steps of 0.66 m every
     ``step_s`` (the first by the right foot), each heel strike at a dip of the camera's height,
     the closing step ``step_s`` after the last, standing 1.5 s. ``dip_shift_s``: the height
     made of one dip per step instead (0.08 s wide), those of the given steps moved by the
-    given times. Returns the frame times, camera
+    given times. The feet stand ``HALF_WIDTH_M`` either side of the path and walk
+    ``walk_half_m`` either side of it. Returns the frame times, camera
     poses, every stance's (side, heel strike time, floor point) and the walk's direction."""
     t_end = T0 + (n_steps + 1) * step_s + 1.5
     t = np.arange(0.0, t_end, 1.0 / FPS)
@@ -59,10 +62,10 @@ def _walk(
     for k in range(n_steps):
         side = "right" if k % 2 == 0 else "left"
         sign = 1.0 if side == "left" else -1.0
-        stances.append((side, T0 + k * step_s, (k + 1) * STEP_M * u + sign * HALF_WIDTH_M * left))
+        stances.append((side, T0 + k * step_s, (k + 1) * STEP_M * u + sign * walk_half_m * left))
     side = "right" if n_steps % 2 == 0 else "left"  # the foot that did not take the last step
     sign = 1.0 if side == "left" else -1.0
-    stances.append((side, T0 + n_steps * step_s, n_steps * STEP_M * u + sign * HALF_WIDTH_M * left))
+    stances.append((side, T0 + n_steps * step_s, n_steps * STEP_M * u + sign * walk_half_m * left))
     return t, T, stances
 
 
@@ -115,6 +118,26 @@ def test_the_closing_steps_neighbour_rests_beside_it() -> None:
     laid = [f for f in feet if f.inferred]
     assert len(laid) == 1
     np.testing.assert_allclose(laid[0].xy, stances[last][2], atol=0.01)
+
+
+@pytest.mark.parametrize("seen_steps", [(1, 3, 5, 7), ()])
+def test_a_foot_never_seen_walking_takes_its_width_from_the_other_or_a_typical_step(
+    seen_steps: tuple[int, ...],
+) -> None:
+    """Feet standing 16 cm apart and walking 8 cm apart (the typical step width of
+    :data:`HALF_STEP_WIDTH_M`). The right foot never seen walking: its laid stances mirror
+    the left's walking offset about the middle of the feet; no foot seen walking (only the
+    standing, the last and the closing stances): they lie half a typical step either side."""
+    t, T, stances = _walk(walk_half_m=HALF_STEP_WIDTH_M)
+    n = len(stances)
+    keep = {0, 1, n - 2, n - 1, *(2 + k for k in seen_steps)}
+    feet, _ = hidden_stances(
+        _landmarks(stances, skip=tuple(set(range(n)) - keep)), t, T, 0.008, 0.6
+    )
+    laid = {f.landmark_id: f for f in feet if f.inferred}
+    assert len(laid) == N_STEPS - len({*seen_steps, N_STEPS - 1})
+    for landmark_id, foot in laid.items():  # step k = -1 - id, stance 2 + k
+        np.testing.assert_allclose(foot.xy, stances[1 - landmark_id][2], atol=0.01)
 
 
 def test_a_walk_whose_every_step_is_seen_gets_nothing() -> None:

@@ -32,7 +32,12 @@ walking step. Each step of a gap gets a stance of its side:
   side, as the stance tracker's sides: docs/vio.md), at the arc length interpolated in step
   number between those of steps ``a`` and ``b`` (steady steps between two seen ones; the
   closing step ``n`` rests beside step ``n − 1``, and counts as that step here);
-- across it at the median offset of that foot's landmarks;
+- across it at the median offset of that foot's walking landmarks (those of steps
+  ``0 … n − 1`` but each foot's last); a foot without one mirrors the other foot's about the
+  middle of the feet (that of the feet standing before the first dip, else the mean of each
+  foot's median offset over all its landmarks), and a walk without any lies
+  :data:`HALF_STEP_WIDTH_M` either side of that middle: feet standing lie wider apart than
+  walking ones;
 - beginning at its dip plus the walk's median delay from dip to landmark (0.1 s when fewer than
   two landmarks give one), lasting the median of the walking landmarks' durations (half a
   step when none has one). Each foot's last landmark gives neither: the foot may stand there
@@ -65,6 +70,8 @@ from gaitnet.vio.result import StanceFoot, VioResult
 __all__ = [
     "AFTER_DIP_S",
     "BEFORE_DIP_S",
+    "HALF_STEP_WIDTH_M",
+    "HEADING_CHORD_M",
     "INFERRED_STD_M",
     "LATE_S",
     "RHYTHM_TOLERANCE",
@@ -78,6 +85,8 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+
+SIDES = ("left", "right")
 
 LOWPASS_HZ = 4.0
 """Cut-off of the low-pass on the camera's height: above a fast cadence's step rate (2.5 Hz)
@@ -101,6 +110,12 @@ RHYTHM_TOLERANCE = 0.25
 """A dip re-times a landmark only when its intervals to the dips either side lie within this
 fraction of the walk's median interval (in gait initiation a dip came 0.15 s before its heel
 strike, 0.72 and 1.33 intervals from its neighbours)."""
+HEADING_CHORD_M = 0.5
+"""The walking line's heading is its chord over this much path either side [m]."""
+HALF_STEP_WIDTH_M = 0.04
+"""Half a typical walking step width (8 cm between the feet's lines), for a walk with no
+walking landmark to measure it: standing feet lie wider apart (16 cm on the simulated walks,
+which put the laid stances of CMU walks 5–7 cm out)."""
 INFERRED_STD_M = 0.03
 """Standard deviation given to an inferred stance's position [m] (steps differ by 1–3 cm)."""
 
@@ -126,8 +141,9 @@ def _moving_average(t_s: np.ndarray, values: np.ndarray, half_window_s: float) -
 class WalkingLine:
     """The camera's path along the floor averaged over a step either side: at the times ``t_s``
     (n,), its points ``xy`` (n, 2), arc length ``s`` (n,, never decreasing) and unit heading
-    ``u`` (n, 2) (where it moves slower than :data:`WALKING_SPEED_MPS`, the heading of the
-    nearest time it walks: standing, the averaged path wanders by millimetres)."""
+    ``u`` (n, 2): the chord from :data:`HEADING_CHORD_M` back along the path to as far ahead
+    (shorter at the ends), so that standing takes the heading of the walk's first metre and
+    not the sideways start of gait initiation, nor the millimetres the averaged path wanders."""
 
     t_s: np.ndarray
     xy: np.ndarray
@@ -137,20 +153,15 @@ class WalkingLine:
     @classmethod
     def of(cls, t_s: np.ndarray, T_WfromC: np.ndarray, half_window_s: float) -> WalkingLine:
         xy = _moving_average(t_s, T_WfromC[:, :2, 3], half_window_s)
-        d = np.gradient(xy, t_s, axis=0)
-        speed = np.linalg.norm(d, axis=1)
-        moving = np.flatnonzero(speed > WALKING_SPEED_MPS)
-        if moving.size == 0:
-            u = np.tile([1.0, 0.0], (len(t_s), 1))
-        else:
-            nearest = moving[np.abs(np.arange(len(t_s))[:, None] - moving[None]).argmin(axis=1)]
-            u = d[nearest] / speed[nearest, None]
-        step = np.linalg.norm(np.diff(xy, axis=0), axis=1)
-        return cls(t_s, xy, np.r_[0.0, np.cumsum(step)], u)
-
-    def speed(self) -> np.ndarray:
-        """(n,) the line's speed along the floor [m/s]."""
-        return np.gradient(self.s, self.t_s)
+        s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))]
+        ahead = np.minimum(np.searchsorted(s, s + HEADING_CHORD_M), len(s) - 1)
+        back = np.maximum(np.searchsorted(s, s - HEADING_CHORD_M, side="right") - 1, 0)
+        chord = xy[ahead] - xy[back]
+        length = np.linalg.norm(chord, axis=1)
+        u = np.tile([1.0, 0.0], (len(t_s), 1))
+        moved = length > 1e-6
+        u[moved] = chord[moved] / length[moved, None]
+        return cls(t_s, xy, s, u)
 
     def frame_at(self, t: float) -> tuple[np.ndarray, float, np.ndarray]:
         """The line's point, arc length and heading at time ``t``."""
@@ -252,6 +263,35 @@ def _gap_sides(a: _Anchor, b: _Anchor) -> list[tuple[int, str]] | None:
             for k in range(a.step + 1, b.step)]  # fmt: skip
 
 
+def _offsets_across(
+    line: WalkingLine,
+    stance_feet: Sequence[StanceFoot],
+    walking: Sequence[StanceFoot],
+    standing: Sequence[StanceFoot],
+) -> dict[str, float]:
+    """Each foot's offset across the walking line while walking (module docstring)."""
+
+    def median(feet: Sequence[StanceFoot]) -> float | None:
+        values = [line.along_across(f.xy, f.t_first_s)[1] for f in feet]
+        return float(np.median(values)) if values else None
+
+    if {f.side for f in standing} == set(SIDES):
+        centre = float(np.mean([median([f]) for f in standing]))
+    else:
+        every = [median([f for f in stance_feet if f.side == side]) for side in SIDES]
+        centre = float(np.mean([v for v in every if v is not None]))
+    own = {side: median([f for f in walking if f.side == side]) for side in SIDES}
+    out = {}
+    for side, other in (("left", "right"), ("right", "left")):
+        if own[side] is not None:
+            out[side] = own[side]
+        elif own[other] is not None:
+            out[side] = 2.0 * centre - own[other]
+        else:
+            out[side] = centre + (HALF_STEP_WIDTH_M if side == "left" else -HALF_STEP_WIDTH_M)
+    return out
+
+
 def hidden_stances(
     stance_feet: Sequence[StanceFoot],
     t_s: np.ndarray,
@@ -277,9 +317,8 @@ def hidden_stances(
     delay = float(np.median(delays)) if len(delays) >= 2 else DEFAULT_DELAY_S
     lasting = [f.t_last_s - f.t_first_s for _, f in walking]
     duration = float(np.median(lasting)) if lasting else 0.5 * float(np.median(np.diff(dips)))
-    across: dict[str, list[float]] = {}
-    for f in stance_feet:
-        across.setdefault(f.side, []).append(line.along_across(f.xy, f.t_first_s)[1])
+    standing = [f for a in anchors if a.step == -1 for f in a.feet]
+    across = _offsets_across(line, stance_feet, [f for _, f in walking], standing)
 
     def along(a: _Anchor) -> float:
         return float(np.mean([line.along_across(f.xy, f.t_first_s)[0] for f in a.feet]))
@@ -301,14 +340,12 @@ def hidden_stances(
             continue
         b_step = min(b.step, n - 1)  # the closing foot comes to rest beside the last step
         for k, side in sides:
-            if side not in across:  # no landmark of that foot at all
-                continue
             s = along(a) + (along(b) - along(a)) * (k - a.step) / (b_step - a.step)
             t_first = float(dips[k] + delay)
             laid.append(
                 StanceFoot(
                     -1 - k, side, t_first, t_first + duration,
-                    line.point(s, float(np.median(across[side]))),
+                    line.point(s, across[side]),
                     np.full(2, INFERRED_STD_M), 0, inferred=True,
                 )  # fmt: skip
             )
