@@ -239,3 +239,18 @@ def test_strides_through_a_laid_stance_say_so() -> None:
     np.testing.assert_allclose([s.length_m for s in rights], truth, atol=0.01)
     seen = replace(vio, stance_feet=_landmarks(stances))
     assert with_hidden_stances(seen, 0.008, 0.6, (2.5, 1.2)) is seen
+
+
+def test_stances_that_would_start_together_are_dropped_with_a_warning(caplog) -> None:
+    """A laid stance starting with a landmark of its foot (which the dips cannot give, but a
+    stand-in can) leaves the filter's result as it was, with a warning, not an error."""
+    import gaitnet.pipeline.hidden_stances as module
+
+    t, T, stances = _walk()
+    feet = _landmarks(stances, skip=(4,))
+    clash = replace(feet[2], landmark_id=-3, inferred=True, xy=feet[2].xy + 0.5)  # same foot
+    vio = VioResult(t, T, T, T, None, T, feet, [], "gravity_floor", "")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(module, "hidden_stances", lambda *a: ([*feet, clash], "stand-in"))
+        assert with_hidden_stances(vio, 0.008, 0.6, (2.5, 1.2)) is vio
+    assert "dropped" in caplog.text

@@ -366,4 +366,9 @@ def with_hidden_stances(
     if {id(f) for f in feet} == {id(f) for f in vio.stance_feet}:  # nothing laid or re-timed
         return vio
     stances = [Stance(f.side, f.t_first_s, f.t_last_s, f.xy, f.inferred) for f in feet]
-    return replace(vio, stance_feet=feet, strides=strides_from_stances(stances, *gait_limits))
+    try:
+        strides = strides_from_stances(stances, *gait_limits)
+    except ValueError as exc:  # two stances of a foot at one time: the dips misled
+        log.warning("the stances laid from the step rhythm are dropped: %s", exc)
+        return vio
+    return replace(vio, stance_feet=feet, strides=strides)
