@@ -254,3 +254,23 @@ def test_stances_that_would_start_together_are_dropped_with_a_warning(caplog) ->
         mp.setattr(module, "hidden_stances", lambda *a: ([*feet, clash], "stand-in"))
         assert with_hidden_stances(vio, 0.008, 0.6, (2.5, 1.2)) is vio
     assert "dropped" in caplog.text
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_the_dip_finder_agrees_with_scipy(seed: int) -> None:
+    """The minima and prominences of :func:`_prominent_minima` (written out so that ``gaitnet
+    infer`` never imports ``scipy.signal``) are ``scipy.signal.find_peaks`` on the negated
+    signal, plateaus included; the distance rule keeps the deepest of close minima."""
+    from scipy.signal import find_peaks
+
+    from gaitnet.pipeline.hidden_stances import _prominent_minima
+
+    rng = np.random.default_rng(seed)
+    z = np.round(np.cumsum(rng.normal(size=400)), 1)  # rounding makes flat stretches
+    for prominence in (0.5, 2.0, 5.0):
+        expected, _ = find_peaks(-z, prominence=prominence)
+        np.testing.assert_array_equal(_prominent_minima(z, prominence, 1), expected)
+    wide = _prominent_minima(z, 2.0, 25)
+    assert (np.diff(wide) >= 25).all()
+    for k in set(find_peaks(-z, prominence=2.0)[0]) - set(wide):  # dropped for a deeper one
+        assert any(abs(k - m) < 25 and z[m] <= z[k] for m in wide)

@@ -62,8 +62,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.signal import butter, filtfilt, find_peaks
 
+from gaitnet.filters import butterworth2_lowpass, filtfilt2
 from gaitnet.vio.gait import Stance, strides_from_stances
 from gaitnet.vio.result import StanceFoot, VioResult
 
@@ -182,6 +182,37 @@ class WalkingLine:
         return self.xy[k] + (s - self.s[k]) * u + across * np.array([-u[1], u[0]])
 
 
+def _prominent_minima(z: np.ndarray, prominence: float, distance: int) -> np.ndarray:
+    """Indices of the local minima of ``z`` (the middle of a flat one) whose prominence is at
+    least ``prominence``: their depth below the lower of the highest points between them and
+    the nearest lower sample on each side (or the signal's end). Of minima closer than
+    ``distance`` samples the deepest is kept."""
+    n = len(z)
+    if n < 3:
+        return np.zeros(0, dtype=np.int64)
+    d = np.sign(np.diff(z))
+    for k in range(len(d) - 2, -1, -1):  # a flat stretch takes the slope after it
+        if d[k] == 0:
+            d[k] = d[k + 1]
+    starts = np.flatnonzero((d[:-1] < 0) & (d[1:] > 0)) + 1
+    found = []
+    for i in starts:
+        j = i
+        while j + 1 < n and z[j + 1] == z[i]:
+            j += 1
+        lower_left = np.flatnonzero(z[:i] < z[i])
+        lower_right = np.flatnonzero(z[j + 1 :] < z[i])
+        left = z[lower_left[-1] + 1 : i].max() if lower_left.size else z[:i].max()
+        right = z[j + 1 : j + 1 + lower_right[0]].max() if lower_right.size else z[j + 1 :].max()
+        if min(left, right) - z[i] >= prominence:
+            found.append((i + j) // 2)
+    kept: list[int] = []
+    for k in sorted(found, key=lambda k: z[k]):  # deepest first
+        if all(abs(k - m) >= distance for m in kept):
+            kept.append(k)
+    return np.array(sorted(kept), dtype=np.int64)
+
+
 def step_dips(t_s: np.ndarray, T_WfromC: np.ndarray, min_dip_m: float) -> np.ndarray:
     """Times [s] of the camera's height dips that mark steps (module docstring), in order."""
     t_s = np.asarray(t_s, dtype=float)
@@ -191,9 +222,9 @@ def step_dips(t_s: np.ndarray, T_WfromC: np.ndarray, min_dip_m: float) -> np.nda
     fs = 1.0 / (grid[1] - grid[0])
     z = pose[:, 2]
     if fs > 2.5 * LOWPASS_HZ and len(z) > 12:
-        b, a = butter(2, LOWPASS_HZ / (fs / 2.0))
-        z = filtfilt(b, a, z)
-    dips, _ = find_peaks(-z, prominence=min_dip_m, distance=max(1, int(MIN_STEP_S * fs)))
+        b, a = butterworth2_lowpass(LOWPASS_HZ / (fs / 2.0))
+        z = filtfilt2(b, a, z, padlen=9)
+    dips = _prominent_minima(z, min_dip_m, max(1, int(MIN_STEP_S * fs)))
     path = _moving_average(grid, pose[:, :2], 0.3)
     speed = np.linalg.norm(np.gradient(path, grid, axis=0), axis=1)
     return grid[[k for k in dips if speed[k] > WALKING_SPEED_MPS]]
