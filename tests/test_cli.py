@@ -197,3 +197,23 @@ def test_signal_during_simulate_cleans_up(
     assert "Traceback" not in err
     time.sleep(0.5)  # a worker or forkserver that outlived the CLI would still be writing
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("inferred", [0, 2])
+def test_the_gait_table_aligns_and_counts_the_strides_through_unseen_stances(
+    inferred: int, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``gaitnet infer``'s table: every row's columns start where the header's do, and a line
+    counts the strides through a stance laid from the step rhythm only when there are some."""
+    from gaitnet.cli.commands import _print_gait_summary
+
+    stat = {"mean": 1.3, "sd": 0.01, "n": 3}
+    _print_gait_summary({"left": {"n_strides": 3, "n_inferred": inferred, "stride_length_m": stat},
+                         "right": {"n_strides": 0}, "symmetry_index_pct": {}})  # fmt: skip
+    lines = capsys.readouterr().out.splitlines()
+    assert {len(line) for line in lines[1:15]} == {len(lines[0])}  # long labels too
+    assert "1.300 ± 0.010" in lines[1]
+    counted = [line for line in lines if "never saw" in line]
+    assert counted == ([f"strides through a stance the camera never saw, laid from the rhythm "
+                        f"of the steps: {inferred} (gait_strides.csv: inferred)"]
+                       if inferred else [])  # fmt: skip

@@ -355,7 +355,8 @@ def _print_gait_summary(gait: dict) -> None:
     """The time-distance table per side (mean ± SD over steady strides) and the symmetry."""
     from gaitnet.pipeline.gait_parameters import PARAMETERS
 
-    print(f"{'':28s} {'left':>16s} {'right':>16s} {'SI %':>7s}")
+    width = max(len(f"{label} [{unit}]") for _, label, unit in PARAMETERS)
+    print(f"{'':{width}s} {'left':>16s} {'right':>16s} {'SI %':>7s}")
     for key, label, unit in PARAMETERS:
         cells = []
         for side in ("left", "right"):
@@ -363,12 +364,12 @@ def _print_gait_summary(gait: dict) -> None:
             cells.append(f"{stat['mean']:.3f} ± {stat['sd']:.3f}" if stat else "–")
         si = gait.get("symmetry_index_pct", {}).get(key)
         si_text = "" if si is None else f"{si:+.1f}"
-        print(f"{label + ' [' + unit + ']':28s} {cells[0]:>16s} {cells[1]:>16s} {si_text:>7s}")
+        print(f"{label + ' [' + unit + ']':{width}s} {cells[0]:>16s} {cells[1]:>16s} {si_text:>7s}")
     inferred = sum(int(gait.get(side, {}).get("n_inferred", 0)) for side in ("left", "right"))
     if inferred:
         print(
-            f"{inferred} of these strides join a stance the camera never saw, laid from the "
-            "rhythm of the steps (gait_strides.csv: inferred)"
+            "strides through a stance the camera never saw, laid from the rhythm of the "
+            f"steps: {inferred} (gait_strides.csv: inferred)"
         )
 
 
