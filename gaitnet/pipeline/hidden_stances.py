@@ -74,9 +74,9 @@ __all__ = [
     "HEADING_CHORD_M",
     "INFERRED_STD_M",
     "LATE_S",
-    "RHYTHM_TOLERANCE",
     "LOWPASS_HZ",
     "MIN_STEP_S",
+    "RHYTHM_TOLERANCE",
     "WALKING_SPEED_MPS",
     "WalkingLine",
     "hidden_stances",
@@ -105,7 +105,6 @@ DEFAULT_DELAY_S = 0.1
 LATE_S = 0.15
 """A walking landmark first seen more than this after its dip plus the walk's delay was hidden
 as the foot came down: it starts at its dip plus the delay."""
-"""Dip to landmark where fewer than two landmarks give the walk's own delay."""
 RHYTHM_TOLERANCE = 0.25
 """A dip re-times a landmark only when its intervals to the dips either side lie within this
 fraction of the walk's median interval (in gait initiation a dip came 0.15 s before its heel
