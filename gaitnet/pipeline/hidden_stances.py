@@ -64,7 +64,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gaitnet.filters import butterworth2_lowpass, filtfilt2
-from gaitnet.vio.gait import Stance, strides_from_stances
+from gaitnet.vio.gait import SIDES, Stance, strides_from_stances
 from gaitnet.vio.result import StanceFoot, VioResult
 
 __all__ = [
@@ -85,8 +85,6 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
-
-SIDES = ("left", "right")
 
 LOWPASS_HZ = 4.0
 """Cut-off of the low-pass on the camera's height: above a fast cadence's step rate (2.5 Hz)
