@@ -1,7 +1,9 @@
 """The whole pipeline on real walking: motion-capture clips played by the simulator.
 
-For each AMASS-format clip (``*_poses.npz``; e.g. the CMU walks) and, with ``--mirror``, its
-left/right mirror image (:func:`gaitnet.motion.augment.mirror_clip`), and for ``--generated N``
+For each AMASS-format clip (``*_poses.npz``; e.g. the CMU walks), or with ``--loop S`` its own
+gait cycles looped to S seconds (:func:`gaitnet.motion.augment.loop_clip`: a long walk from
+short captures), and with ``--mirror`` its left/right mirror image
+(:func:`gaitnet.motion.augment.mirror_clip`), and for ``--generated N``
 sessions of the gait generator beside them (seeds 2000…), this runs what a user runs:
 
     gaitnet simulate --motion CLIP --seed S --out W/<name>  [--sim KEY=VALUE ...]
@@ -14,7 +16,8 @@ a yaw + translation alignment, then the means per source (real, mirrored, genera
 already simulated with the same command are reused (``W/<name>/sim_command.txt``).
 
     python benchmarks/bench_real_motion.py CLIP [CLIP ...] [--mirror] [--generated N]
-        [--seeds 1 2] [--work DIR] [--sim KEY=VALUE ...] [--set KEY=VALUE ...] [--json OUT]
+        [--loop S] [--seeds 1 2] [--work DIR] [--sim KEY=VALUE ...] [--set KEY=VALUE ...]
+        [--json OUT]
 """
 
 from __future__ import annotations
@@ -28,8 +31,8 @@ import numpy as np
 
 from gaitnet.errors import InputError
 from gaitnet.evaluation.evaluate import evaluate_result
-from gaitnet.motion.amass import read_amass_npz
-from gaitnet.motion.augment import mirror_clip
+from gaitnet.motion.amass import MotionClip, read_amass_npz
+from gaitnet.motion.augment import loop_clip, mirror_clip
 from gaitnet.motion.skeleton import ROTATED_SMPL_INDICES
 from gaitnet.training.scripts import ScriptParser
 
@@ -37,17 +40,19 @@ REPO = Path(__file__).resolve().parents[1]
 GENERATED_SEED = 2000
 
 
-def write_mirrored(clip_path: Path, out: Path) -> Path:
-    """The mirror image of a clip, written in the clip's own layout (SMPL+H G ``poses``)."""
-    mirrored = mirror_clip(read_amass_npz(clip_path))
-    with np.load(clip_path) as data:
+def write_clip(clip: MotionClip, template: Path, out: Path) -> Path:
+    """``clip`` written in ``template``'s layout (SMPL+H G ``poses``, its other keys kept)."""
+    with np.load(template) as data:
         arrays = {k: data[k] for k in data.files}
-    poses = np.zeros_like(arrays["poses"]).reshape(len(mirrored.trans), -1, 3)
-    poses[:, 0] = mirrored.root_orient
-    poses[:, list(ROTATED_SMPL_INDICES)] = mirrored.joint_aa
-    arrays.update(poses=poses.reshape(len(poses), -1), trans=mirrored.trans)
-    if mirrored.rest_joints is not None:
-        arrays["gaitnet_rest_joints"] = mirrored.rest_joints
+    poses = np.zeros((clip.n_frames, arrays["poses"].shape[1] // 3, 3))
+    poses[:, 0] = clip.root_orient
+    poses[:, list(ROTATED_SMPL_INDICES)] = clip.joint_aa
+    arrays.update(poses=poses.reshape(clip.n_frames, -1), trans=clip.trans)
+    for key in ("dmpls",):
+        if key in arrays and arrays[key].ndim == 2:
+            arrays[key] = np.zeros((clip.n_frames, arrays[key].shape[1]), arrays[key].dtype)
+    if clip.rest_joints is not None:
+        arrays["gaitnet_rest_joints"] = clip.rest_joints
     out.parent.mkdir(parents=True, exist_ok=True)
     np.savez(out, **arrays)
     return out
@@ -134,6 +139,13 @@ def main() -> None:
     parser.add_argument("clips", nargs="*", type=Path)
     parser.add_argument("--mirror", action="store_true", help="also each clip's mirror image")
     parser.add_argument("--generated", type=int, default=0, help="generated sessions beside")
+    parser.add_argument(
+        "--loop",
+        type=float,
+        metavar="SECONDS",
+        help="play each clip's own gait cycles looped to this length (gaitnet.motion.augment."
+        "loop_clip) instead of the clip as captured",
+    )
     parser.add_argument("--seeds", type=int, nargs="+", default=[1])
     parser.add_argument("--work", type=Path, default=REPO / "runs" / "bench_real_motion")
     parser.add_argument("--sim", nargs="*", default=[], metavar="KEY=VALUE")
@@ -146,10 +158,15 @@ def main() -> None:
             raise InputError(f"{clip}: no such clip file")
     jobs: list[tuple[str, str, list[str]]] = []
     for clip in args.clips:
+        motion, stem = read_amass_npz(clip), clip.stem
         sources = [("real", clip.resolve())]
+        if args.loop:
+            motion, stem = loop_clip(motion, args.loop), f"{stem}_loop{args.loop:g}"
+            sources = [("real", write_clip(motion, clip, work / "clips" / f"{stem}.npz"))]
         if args.mirror:
-            mirrored = write_mirrored(clip, work / "clips" / f"{clip.stem}_mirror.npz")
-            sources.append(("mirrored", mirrored))
+            mirrored = mirror_clip(motion)
+            path = write_clip(mirrored, clip, work / "clips" / f"{stem}_mirror.npz")
+            sources.append(("mirrored", path))
         for kind, path in sources:
             for seed in args.seeds:
                 name = f"{path.stem.removesuffix('_poses')}_s{seed}"

@@ -199,6 +199,19 @@ def test_signal_during_simulate_cleans_up(
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_progress_bar_stopped_while_being_built_is_forgotten_not_closed() -> None:
+    """A signal inside ``tqdm.__init__`` leaves a bar registered but without a position:
+    the interrupt's cleanup drops it instead of raising AttributeError from ``close``."""
+    from tqdm import tqdm
+
+    from gaitnet.cli import _end_progress_bars
+
+    half_built = tqdm.__new__(tqdm)  # registered by __new__, as before __init__ is stopped
+    assert half_built in tqdm._instances and not hasattr(half_built, "pos")
+    _end_progress_bars()
+    assert half_built not in tqdm._instances
+
+
 @pytest.mark.parametrize("inferred", [0, 2])
 def test_the_gait_table_aligns_and_counts_the_strides_through_unseen_stances(
     inferred: int, capsys: pytest.CaptureFixture[str]

@@ -9,6 +9,8 @@ from gaitnet.motion.amass import MotionClip
 from gaitnet.motion.augment import (
     MIRROR_WORLD,
     augment_split,
+    find_loop,
+    loop_clip,
     mirror_clip,
     mirror_rest_joints,
     mirror_rotations,
@@ -99,6 +101,65 @@ def test_time_scaling_plays_the_same_poses_faster() -> None:
     np.testing.assert_allclose(slow.joint_aa[::2], clip.joint_aa, atol=1e-9)
     with pytest.raises(ValueError, match="time-scale"):
         time_scale_clip(clip, 0.0)
+
+
+def _gait_clip(n: int, drift: float = 0.0) -> MotionClip:
+    """A walk whose legs repeat every second (30 frames), walking +x at 1.2 m/s; ``drift``
+    adds a slow change of knee flexion, heading and pelvis height the loop must take off."""
+    from scipy.spatial.transform import Rotation
+
+    t = np.arange(n) / 30.0
+    aa = np.zeros((n, 8, 3))
+    aa[:, 0, 0] = 0.4 * np.sin(2 * np.pi * t)  # hips
+    aa[:, 1, 0] = -0.4 * np.sin(2 * np.pi * t)
+    aa[:, 2, 0] = 0.6 + 0.5 * np.sin(2 * np.pi * t + 1.0) + drift * t  # knees
+    aa[:, 3, 0] = 0.6 + 0.5 * np.sin(2 * np.pi * t + 1.0 + np.pi)
+    root = (
+        Rotation.from_rotvec(np.outer(drift * t, [0.0, 0.0, 1.0]))
+        * Rotation.from_rotvec(UPRIGHT_FACING_X)
+    ).as_rotvec()
+    trans = np.stack([1.2 * t, 0 * t, 0.9 + 0.02 * np.cos(4 * np.pi * t) + drift * t], axis=1)
+    return MotionClip(
+        name="g", dataset="D", fps=30.0, root_orient=root, joint_aa=aa, trans=trans,
+        betas=np.zeros(4), gender="neutral", source_fps=30.0,
+        rest_joints=builtin_skeleton(1.7).rest_joints,
+    )  # fmt: skip
+
+
+def test_a_periodic_walk_loops_into_its_own_continuation() -> None:
+    """Known answer: a clip of a walk that repeats every second, looped, is the same walk
+    played for longer (frame ``i + k`` of the long walk, to 1e-9)."""
+    short, long = _gait_clip(61), _gait_clip(400)
+    i, j = find_loop(short)
+    assert (j - i) % 30 == 0 and j - i >= 27  # whole cycles, at least 0.9 s
+    looped = loop_clip(short, 10.0)
+    assert looped.n_frames == 301 and looped.name == "g#loop10s"
+    np.testing.assert_allclose(looped.joint_aa, long.joint_aa[i : i + 301], atol=1e-9)
+    np.testing.assert_allclose(looped.root_orient, long.root_orient[i : i + 301], atol=1e-9)
+    np.testing.assert_allclose(looped.trans, long.trans[i : i + 301], atol=1e-9)
+
+
+def test_a_drifting_walk_loops_without_a_jump_at_the_seams() -> None:
+    """Heading, knee and pelvis-height drift are taken off within each loop: the joints move
+    no more from one frame to the next across a seam than inside the clip, and the walk
+    goes on straight at the clip's speed."""
+    clip = _gait_clip(61, drift=0.15)
+    skel = builtin_skeleton(1.7)
+    inside = np.linalg.norm(
+        np.diff(forward_kinematics(skel, clip.root_orient, clip.trans, clip.joint_aa), axis=0),
+        axis=-1,
+    ).max()
+    looped = loop_clip(clip, 8.0)
+    joints = forward_kinematics(skel, looped.root_orient, looped.trans, looped.joint_aa)
+    assert np.linalg.norm(np.diff(joints, axis=0), axis=-1).max() < 1.05 * inside
+    np.testing.assert_allclose((looped.trans[-1, 0] - looped.trans[0, 0]) / 8.0, 1.2, rtol=0.02)
+    assert abs(looped.trans[-1, 1]) < 1e-6
+    assert np.ptp(looped.trans[:, 2]) < 0.05  # the height's drift does not pile up
+
+
+def test_a_clip_shorter_than_a_loop_is_refused() -> None:
+    with pytest.raises(ValueError, match="too short to loop"):
+        loop_clip(_gait_clip(20), 5.0)
 
 
 def _prepared(clips: list[MotionClip], splits: list[str]) -> PreparedWalking:

@@ -430,11 +430,30 @@ def _sigterm_as_interrupt() -> Iterator[None]:
 
 def _end_progress_bars() -> None:
     """Close the progress bars still on screen (a command stopped by a signal leaves its
-    bar's line open), so that the signal's one-line message starts its own line."""
+    bar's line open), so that the signal's one-line message starts its own line. A bar the
+    signal stopped while it was being built has no position yet: it is only forgotten."""
     from tqdm import tqdm
 
-    for bar in list(getattr(tqdm, "_instances", ())):
-        bar.close()
+    instances = getattr(tqdm, "_instances", set())
+    for bar in list(instances):
+        if hasattr(bar, "pos"):
+            bar.close()
+        else:
+            instances.discard(bar)
+
+
+def _clear_unhandled_interrupt_flag() -> None:
+    """Forget, at the interpreter's level, a KeyboardInterrupt that :func:`main` handled.
+
+    CPython remembers a KeyboardInterrupt that ended a nested evaluation of code and, when
+    ``python -m gaitnet.cli`` or the ``gaitnet`` script exits, kills the process with SIGINT
+    instead of returning its exit status. Under load (about one Ctrl-C in 30 at the start
+    of ``gaitnet simulate``) a handled interrupt left that mark behind and the status came
+    out as death by SIGINT rather than 130. Running an empty statement through the same
+    entry point resets the mark."""
+    import ctypes
+
+    ctypes.pythonapi.PyRun_SimpleString(b"")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -472,10 +491,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         except _Terminated:
             _end_progress_bars()
             print(f"{name}: terminated", file=sys.stderr)
+            _clear_unhandled_interrupt_flag()
             return EXIT_SIGTERM
         except KeyboardInterrupt:
             _end_progress_bars()
             print(f"{name}: interrupted", file=sys.stderr)
+            _clear_unhandled_interrupt_flag()
             return EXIT_SIGINT
         except Exception:
             traceback.print_exc()

@@ -15,6 +15,9 @@
 * :func:`time_scale_clip`: the clip played ``factor`` times faster (or slower), resampled by
   time at its own rate with the loader's slerp (:func:`gaitnet.motion.amass.resample_clip`):
   the same poses in the same order, only the speed of the motion changes.
+* :func:`loop_clip`: a longer walk made of the clip's own gait cycles played again and again
+  (:func:`find_loop`); for trying long sessions on real motion that was captured in short
+  pieces, never for training.
 * :func:`augment_split`: a prepared file with the mirrored and time-scaled copies of every
   clip of one split appended (same sub-dataset and split, names tagged ``#mirror`` /
   ``#x1.2``).
@@ -39,6 +42,8 @@ __all__ = [
     "MIRROR_BODY",
     "MIRROR_WORLD",
     "augment_split",
+    "find_loop",
+    "loop_clip",
     "mirror_clip",
     "mirror_rest_joints",
     "mirror_rotations",
@@ -91,6 +96,69 @@ def time_scale_clip(clip: MotionClip, factor: float) -> MotionClip:
         raise ValueError(f"time-scale factor must be in [0.25, 4], got {factor}")
     faster = resample_clip(replace(clip, fps=clip.fps * float(factor)), clip.fps)
     return replace(faster, name=f"{clip.name}#x{factor:g}", source_fps=clip.source_fps)
+
+
+def _pose_distance(clip: MotionClip) -> np.ndarray:
+    """(T, T) squared distance between the clip's poses: joint axis-angles [rad²], the
+    root's tilt and yaw rate left aside (the pair's root difference is removed by the loop)."""
+    aa = np.asarray(clip.joint_aa, dtype=np.float64).reshape(clip.n_frames, -1)
+    sq = np.sum(aa**2, axis=1)
+    return np.maximum(sq[:, None] + sq[None, :] - 2.0 * aa @ aa.T, 0.0)
+
+
+def find_loop(clip: MotionClip, min_loop_s: float = 0.9) -> tuple[int, int]:
+    """Frames ``(i, j)``, ``j − i`` at least ``min_loop_s``, whose joint rotations agree best:
+    the clip's frames ``i … j − 1`` repeat as a whole number of gait cycles. Among pairs whose
+    mismatch is within 1.5 times the best, the longest loop is taken (more of the clip's
+    own step-to-step variation)."""
+    n_min = int(np.ceil(min_loop_s * clip.fps))
+    if clip.n_frames <= n_min + 1:
+        raise ValueError(
+            f"{clip.name}: {clip.duration_s:.2f} s is too short to loop "
+            f"(a loop holds at least {min_loop_s:g} s)"
+        )
+    dist = _pose_distance(clip)
+    i, j = np.triu_indices(clip.n_frames, k=n_min)
+    cost = dist[i, j]
+    near_best = cost <= 1.5 * cost.min() + 1e-12
+    k = np.flatnonzero(near_best)[np.argmax((j - i)[near_best])]
+    return int(i[k]), int(j[k])
+
+
+def loop_clip(clip: MotionClip, duration_s: float, min_loop_s: float = 0.9) -> MotionClip:
+    """``clip``'s loop (:func:`find_loop`) played until ``duration_s``, walking straight on.
+
+    Frames ``i … j − 1`` are made to join end to start: the root's rotation from frame ``i``
+    to ``j``, ``Δ = R_j R_iᵀ``, is taken off gradually, ``R'_t = Exp(−s_t log Δ) R_t`` with
+    ``s_t = (t − i)/(j − i)``, and so are the joint rotations' and the pelvis height's
+    differences (``a'_t = a_t − s_t (a_j − a_i)``). Repetition ``k`` is the loop moved
+    ``k`` times the pelvis's horizontal advance ``p_j − p_i`` (``p`` the pelvis, ``trans``
+    plus the rest pelvis). A stance foot slides by the rotation taken off, a few millimetres
+    on the CMU walks; the rest of the motion is the clip's, cycle after cycle."""
+    i, j = find_loop(clip, min_loop_s)
+    length = j - i
+    s = (np.arange(length) / length)[:, None]
+    R = so3_exp(np.asarray(clip.root_orient, dtype=np.float64))
+    omega = so3_log(R[j] @ R[i].T)
+    root = so3_log(so3_exp(-s * omega) @ R[i:j])
+    aa = np.asarray(clip.joint_aa, dtype=np.float64)
+    joint = aa[i:j] - s[:, :, None] * (aa[j] - aa[i])[None]
+    rest_pelvis = np.zeros(3) if clip.rest_joints is None else np.asarray(clip.rest_joints)[0]
+    trans = np.asarray(clip.trans, dtype=np.float64)
+    pelvis = trans[i:j] + rest_pelvis
+    pelvis[:, 2] -= s[:, 0] * (trans[j, 2] - trans[i, 2])
+    advance = np.array([*(trans[j, :2] - trans[i, :2]), 0.0])
+    n_out = int(round(duration_s * clip.fps)) + 1
+    reps = -(-n_out // length)
+    offsets = np.repeat(np.arange(reps), length)[:n_out, None] * advance
+    tile = np.arange(n_out) % length
+    return replace(
+        clip,
+        name=f"{clip.name}#loop{duration_s:g}s",
+        root_orient=root[tile],
+        joint_aa=joint[tile],
+        trans=pelvis[tile] + offsets - rest_pelvis,
+    )
 
 
 def augment_split(
