@@ -7,6 +7,7 @@ import numpy as np
 from gaitnet.pipeline.foot_sides import (
     OTHER_FOOT_MARGIN_S,
     OTHER_FOOT_RADIUS_M,
+    UNMEASURED_REST_HEIGHT_M,
     reside_measured_feet,
 )
 from gaitnet.vio.result import StanceFoot
@@ -70,3 +71,38 @@ def test_points_apart_or_outside_the_rest_stay() -> None:
     assert changed == 0
     np.testing.assert_array_equal(out, before)
     np.testing.assert_array_equal(measured, before)
+
+
+def test_a_point_at_a_rest_never_measured_goes_to_that_foot() -> None:
+    """Known answer: the right foot's rest at x = 1.8 was never measured (a stance laid from
+    the step rhythm). A point measured as the left foot there while the right rests goes to
+    the right foot, compared along the floor with the right's landmark moved by its measured
+    rests' offset (here 2 cm forward) at the measured rests' height; one as far off but 10 cm
+    higher than that height, or 8 cm to the side, stays the left foot's."""
+    t, measured, feet = _scene()
+    second_right = int(1.8 * FPS)
+    measured[second_right:, 1] = np.nan  # the right foot's second rest is never seen
+    measured[int(0.6 * FPS) : int(1.1 * FPS) + 1, 1, 0] += 0.02  # first rest: 2 cm forward
+    k_at, k_high, k_beside = int(2.0 * FPS), int(2.1 * FPS), int(2.2 * FPS)
+    at_rest = np.array([1.8 + 0.02 + 0.03, -0.1, 0.08 + 0.02])
+    measured[k_at, 0] = at_rest
+    measured[k_high, 0] = [1.82, -0.1, 0.08 + UNMEASURED_REST_HEIGHT_M + 0.02]
+    measured[k_beside, 0] = [1.82, -0.1 + 0.08, 0.08]
+    before = measured.copy()
+    out, changed = reside_measured_feet(t, measured, feet)
+    assert changed == 1
+    np.testing.assert_allclose(out[k_at, 1], at_rest)
+    assert np.isnan(out[k_at, 0]).all()
+    keep = np.ones(len(t), bool)
+    keep[k_at] = False
+    np.testing.assert_array_equal(out[keep], before[keep])
+
+
+def test_without_any_measured_rest_nothing_is_resided() -> None:
+    """No rest of either foot measured: no height to compare with, nothing moves."""
+    t, measured, feet = _scene()
+    swing = np.full_like(measured, np.nan)
+    swing[int(1.9 * FPS), 0] = [1.8, -0.1, 0.08]
+    out, changed = reside_measured_feet(t, swing, feet)
+    assert changed == 0
+    np.testing.assert_array_equal(out, swing)
