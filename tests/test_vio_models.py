@@ -382,3 +382,31 @@ def test_imu_pose_from_camera_pose_round_trips() -> None:
     q, p = imu_pose_from_camera_pose(T_WfromC, T_CfromI)
     T_back = make_T(rotmat_from_quat(q), p) @ invert_T(T_CfromI)
     np.testing.assert_allclose(T_back, T_WfromC, atol=1e-12)
+
+
+def test_partial_foot_noise_adds_half_the_hidden_width_across_the_foot() -> None:
+    """Known answer: a foot seen 7 cm wide where the whole one is 11 cm adds (2 cm)² across
+    it on the floor and nothing along it or up; a foot seen whole or wider adds nothing."""
+    from gaitnet.vio.foot_model import partial_foot_noise
+
+    up_C = np.array([0.0, -1.0, 0.0])  # camera y points down
+    axis_C = np.array([0.0, 0.3, 1.0])  # forward, with a component off the floor
+    R3 = partial_foot_noise(0.01, (0.17, 0.07), (0.20, 0.11), axis_C, up_C)
+    along = np.array([0.0, 0.0, 1.0])
+    across = np.cross(up_C, along)
+    assert along @ R3 @ along == pytest.approx(1e-4)
+    assert up_C @ R3 @ up_C == pytest.approx(1e-4)
+    assert across @ R3 @ across == pytest.approx(1e-4 + 0.02**2)
+    np.testing.assert_allclose(R3, R3.T)
+    whole = partial_foot_noise(0.01, (0.25, 0.12), (0.20, 0.11), axis_C, up_C)
+    np.testing.assert_allclose(whole, np.eye(3) * 1e-4)
+
+
+def test_the_whole_foot_view_is_the_90th_percentile_once_enough_are_seen() -> None:
+    from gaitnet.vio.foot_model import FullFootView
+
+    view = FullFootView()
+    lengths = np.linspace(0.10, 0.20, 11)
+    got = [view.add(float(v), float(v) / 2) for v in lengths]
+    assert got[: FullFootView.MIN_VIEWS - 1] == [None] * (FullFootView.MIN_VIEWS - 1)
+    assert got[-1] == pytest.approx((np.percentile(lengths, 90), np.percentile(lengths / 2, 90)))

@@ -422,3 +422,19 @@ def test_a_sheet_refused_steadily_frame_after_frame_is_taken_after_widening(
     jumpy[0] = True
     wrong = run()
     assert wrong.used["tag_recovered"] == 0 and wrong.used["tag"] == 0
+
+
+def test_partial_foot_noise_key_acts(walk: Path, walk_result) -> None:
+    """``filter.partial_foot_noise`` (default on) weighs partly hidden feet less: off, the same
+    walk's landmarks and path come out otherwise (the noise itself:
+    tests/test_vio_models.py)."""
+    off = run_vio(
+        open_session(walk), load_config(VioConfig, None, ["filter.partial_foot_noise=false"])
+    )
+    assert len(off.stance_feet) == len(walk_result.stance_feet)
+    moved = [
+        float(np.linalg.norm(a.xy - b.xy))
+        for a, b in zip(off.stance_feet, walk_result.stance_feet, strict=True)
+    ]
+    assert max(moved) > 1e-5
+    assert not np.allclose(off.T_WfromC, walk_result.T_WfromC, atol=1e-6)

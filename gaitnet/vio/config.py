@@ -66,6 +66,9 @@ class FilterParams:
     diverge) but not the end sheet's correction of the walk's drift, which the filter's
     covariance covers now that it is consistent (docs/vio.md, *Filter consistency*).
     ``foot_std_m``: standard deviation of a measured stance-foot point per axis [m].
+    ``partial_foot_noise``: a candidate narrower than the whole foot (the session's fullest
+    views) adds half the hidden width across the foot to that standard deviation
+    (:func:`gaitnet.vio.foot_model.partial_foot_noise`).
     ``min_foot_observations``: landmarks seen fewer times are not reported (the frames its
     stance track saw the foot before the stance was confirmed when a whole-enough foot was
     among them, then the accepted updates).
@@ -102,6 +105,7 @@ class FilterParams:
     tag_gate_probability: float = 0.99999
     foot_gate_probability: float = 0.999
     foot_std_m: float = 0.01
+    partial_foot_noise: bool = True
     min_foot_observations: int = 3
     end_sheet_std_m: float = 0.005
     gravity_mps2: float = 0.0
