@@ -391,22 +391,30 @@ def test_partial_foot_noise_adds_half_the_hidden_width_across_the_foot() -> None
 
     up_C = np.array([0.0, -1.0, 0.0])  # camera y points down
     axis_C = np.array([0.0, 0.3, 1.0])  # forward, with a component off the floor
-    R3 = partial_foot_noise(0.01, (0.17, 0.07), (0.20, 0.11), axis_C, up_C)
+    R3 = partial_foot_noise(0.01, 0.07, 0.11, axis_C, up_C)
     along = np.array([0.0, 0.0, 1.0])
     across = np.cross(up_C, along)
     assert along @ R3 @ along == pytest.approx(1e-4)
     assert up_C @ R3 @ up_C == pytest.approx(1e-4)
     assert across @ R3 @ across == pytest.approx(1e-4 + 0.02**2)
     np.testing.assert_allclose(R3, R3.T)
-    whole = partial_foot_noise(0.01, (0.25, 0.12), (0.20, 0.11), axis_C, up_C)
+    whole = partial_foot_noise(0.01, 0.12, 0.11, axis_C, up_C)
     np.testing.assert_allclose(whole, np.eye(3) * 1e-4)
 
 
-def test_the_whole_foot_view_is_the_90th_percentile_once_enough_are_seen() -> None:
-    from gaitnet.vio.foot_model import FullFootView
+def test_foot_noise_takes_the_whole_width_from_the_widths_seen_so_far() -> None:
+    """The whole width is the 90th percentile of the widths seen, from the 10th on; before,
+    and with ``partial`` off, the noise is ``std_m²`` per axis."""
+    from gaitnet.vio.foot_model import FootNoise, partial_foot_noise
 
-    view = FullFootView()
-    lengths = np.linspace(0.10, 0.20, 11)
-    got = [view.add(float(v), float(v) / 2) for v in lengths]
-    assert got[: FullFootView.MIN_VIEWS - 1] == [None] * (FullFootView.MIN_VIEWS - 1)
-    assert got[-1] == pytest.approx((np.percentile(lengths, 90), np.percentile(lengths / 2, 90)))
+    up_C, axis_C = np.array([0.0, -1.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    noise, off = FootNoise(0.01, partial=True), FootNoise(0.01, partial=False)
+    widths = [0.10, 0.11, 0.12, 0.11, 0.10, 0.11, 0.12, 0.11, 0.10, 0.06, 0.07]
+    got = [noise.of(w, axis_C, up_C) for w in widths]
+    for R3 in got[: FootNoise.MIN_VIEWS - 1] + [off.of(0.05, axis_C, up_C)]:
+        np.testing.assert_array_equal(R3, np.eye(3) * 1e-4)
+    for k in (FootNoise.MIN_VIEWS - 1, FootNoise.MIN_VIEWS):
+        full = np.percentile(widths[: k + 1], 90)
+        want = partial_foot_noise(0.01, widths[k], full, axis_C, up_C)
+        np.testing.assert_allclose(got[k], want)
+        assert want[0, 0] > 1e-4 + 0.02**2  # the hidden width counts

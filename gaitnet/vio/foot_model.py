@@ -32,43 +32,18 @@ from gaitnet.vio.state import FilterState
 E12 = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 
 
-class FullFootView:
-    """The extents ``(length, width)`` [m] of a whole foot as the session shows it: the 90th
-    percentiles of those of the stance-foot candidates seen so far (the standing start shows
-    both feet whole), once :attr:`MIN_VIEWS` have been seen."""
-
-    MIN_VIEWS = 10
-
-    def __init__(self) -> None:
-        self._lengths: list[float] = []
-        self._widths: list[float] = []
-
-    def add(self, length_m: float, width_m: float) -> tuple[float, float] | None:
-        """Record one candidate's extents; the whole foot's so far (None: too few seen)."""
-        self._lengths.append(float(length_m))
-        self._widths.append(float(width_m))
-        if len(self._lengths) < self.MIN_VIEWS:
-            return None
-        return float(np.percentile(self._lengths, 90)), float(np.percentile(self._widths, 90))
-
-
 def partial_foot_noise(
-    std_m: float,
-    extent_m: tuple[float, float],
-    full_extent_m: tuple[float, float],
-    axis_C: np.ndarray,
-    up_C: np.ndarray,
+    std_m: float, width_m: float, full_width_m: float, axis_C: np.ndarray, up_C: np.ndarray
 ) -> np.ndarray:
     """Noise (3, 3) of a measured stance-foot point in the camera frame when only part of the
     foot shows: ``std_m²`` per axis (the thesis's ``r_foot I3`` of (3.26)) plus, across the
     foot's main floor axis ``axis_C`` on the floor (``up_C`` the floor's normal), the square
-    of half the hidden width, ``(full − seen) / 2`` of the widths in ``extent_m`` and
-    ``full_extent_m`` (``(length, width)`` [m], the latter the fullest view,
-    :class:`FullFootView`). A thigh that hides one side of a planted foot moves its centroid
-    sideways as the camera passes: on a CMU walker looped to 20 s the walking landmarks were
-    seen 5–7.5 cm wide against 11.5 cm standing, and their points moved 2 cm sideways within
-    4–5 frames, which the filter took for the camera's motion (16.7 cm sideways mid-walk).
-    Along the foot nothing is added: the stride length rests on it."""
+    of half the hidden width, ``(full_width_m − width_m) / 2``. A thigh that hides one side of
+    a planted foot moves its centroid sideways as the camera passes: on a CMU walker looped to
+    20 s the walking landmarks were seen 5–7.5 cm wide against 11.5 cm standing, and their
+    points moved 2 cm sideways within 4–5 frames, which the filter took for the camera's
+    motion (16.7 cm sideways mid-walk). Along the foot nothing is added: the stride length
+    rests on it."""
     R3 = np.eye(3) * float(std_m) ** 2
     up = np.asarray(up_C, dtype=np.float64) / np.linalg.norm(up_C)
     along = np.asarray(axis_C, dtype=np.float64)
@@ -76,10 +51,33 @@ def partial_foot_noise(
     norm = np.linalg.norm(along)
     if norm < 1e-9:
         return R3
-    along /= norm
-    across = np.cross(up, along)
-    hidden = max(float(full_extent_m[1]) - float(extent_m[1]), 0.0) / 2.0
+    across = np.cross(up, along / norm)
+    hidden = max(float(full_width_m) - float(width_m), 0.0) / 2.0
     return R3 + hidden**2 * np.outer(across, across)
+
+
+class FootNoise:
+    """The noise of each measured stance-foot point of a session: ``std_m²`` per axis, and with
+    ``partial`` the hidden width of :func:`partial_foot_noise` against the whole foot's width
+    as the session shows it, the 90th percentile of the widths seen so far (the standing
+    start shows both feet whole), once :attr:`MIN_VIEWS` have been seen."""
+
+    MIN_VIEWS = 10
+
+    def __init__(self, std_m: float, partial: bool) -> None:
+        self.std_m = float(std_m)
+        self.partial = bool(partial)
+        self._widths: list[float] = []
+
+    def of(self, width_m: float, axis_C: np.ndarray, up_C: np.ndarray) -> np.ndarray:
+        """The noise (3, 3) of a point measured on a foot seen ``width_m`` wide."""
+        if not self.partial:
+            return np.eye(3) * self.std_m**2
+        self._widths.append(float(width_m))
+        if len(self._widths) < self.MIN_VIEWS:
+            return np.eye(3) * self.std_m**2
+        full = float(np.percentile(self._widths, 90))
+        return partial_foot_noise(self.std_m, width_m, full, axis_C, up_C)
 
 
 def foot_predict(

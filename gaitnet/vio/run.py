@@ -136,12 +136,7 @@ def run_vio(
     stance-foot candidates too (:mod:`gaitnet.vio.feet_segmented`).
     """
     from gaitnet.vio.apriltags import detect_board_pose, imu_pose_from_camera
-    from gaitnet.vio.foot_model import (
-        FullFootView,
-        foot_measurement,
-        landmark_from_observation,
-        partial_foot_noise,
-    )
+    from gaitnet.vio.foot_model import FootNoise, foot_measurement, landmark_from_observation
     from gaitnet.vio.stance_tracker import StanceTracker
     from gaitnet.vio.tag_model import tag_measurement
     from gaitnet.vio.vo_model import vo_measurement
@@ -167,7 +162,7 @@ def run_vio(
     baseline = state.copy()
     odometry = FrameOdometry(cfg.vo)
     tracker = StanceTracker(cfg.stance)
-    foot_views = FullFootView()
+    foot_noise = FootNoise(cfg.filter.foot_std_m, cfg.filter.partial_foot_noise)
     landmarks: dict[int, _Landmark] = {}
     result_used: Counter = Counter()
     skipped: dict[str, Counter] = {}
@@ -330,17 +325,7 @@ def run_vio(
             for cand, a in zip(candidates, assignments, strict=True):
                 if a is None:
                     continue
-                R3 = np.eye(3) * cfg.filter.foot_std_m**2
-                if cfg.filter.partial_foot_noise:
-                    full = foot_views.add(cand.length_m, cand.width_m)
-                    if full is not None:
-                        R3 = partial_foot_noise(
-                            cfg.filter.foot_std_m,
-                            (cand.length_m, cand.width_m),
-                            full,
-                            cand.axis_C,
-                            up_C,
-                        )
+                R3 = foot_noise.of(cand.width_m, cand.axis_C, up_C)
                 if a.stance_id not in state.landmarks:
                     if a.stance_id in landmarks:  # already marginalised: not reopened
                         skip("foot", "landmark already marginalised")
